@@ -1,0 +1,272 @@
+//! Checkpoint files (`.ipfn`): one safetensors file holding the model's config (JSON in the
+//! header metadata), a format tag and version, and named float32 tensors.
+//!
+//! Later, training state (critic, optimiser moments, RNG counters) goes into the same file under
+//! its own tensor names and metadata keys. Files are written atomically.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+
+use crate::error::Result;
+use crate::input_error;
+use crate::io::write_atomic;
+
+/// Metadata key whose value identifies an ipfn checkpoint.
+pub const FORMAT_KEY: &str = "format";
+/// Value of [`FORMAT_KEY`].
+pub const FORMAT_NAME: &str = "ipfn-checkpoint";
+/// Metadata key of the format version.
+pub const VERSION_KEY: &str = "format_version";
+/// The version this build writes and reads.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// A float32 tensor: row-major values and their shape.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tensor32 {
+    pub shape: Vec<usize>,
+    pub values: Vec<f32>,
+}
+
+/// The contents of a checkpoint file.
+#[derive(Debug, Clone, Default)]
+pub struct Checkpoint {
+    /// Where it was read from (for error messages); empty for a new checkpoint.
+    pub source: PathBuf,
+    pub metadata: BTreeMap<String, String>,
+    pub tensors: BTreeMap<String, Tensor32>,
+}
+
+impl Checkpoint {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    pub fn insert(&mut self, name: impl Into<String>, shape: Vec<usize>, values: Vec<f32>) {
+        assert_eq!(shape.iter().product::<usize>(), values.len(), "tensor shape and data disagree");
+        self.tensors.insert(name.into(), Tensor32 { shape, values });
+    }
+
+    /// The tensor `name`, which must have `shape`; an error names the file otherwise.
+    pub fn tensor(&self, name: &str, shape: &[usize]) -> Result<&[f32]> {
+        let t = self.tensors.get(name).ok_or_else(|| {
+            input_error!("{}: tensor {name} is missing: the file is not a model of this kind", self.source.display())
+        })?;
+        if t.shape != shape {
+            return Err(input_error!(
+                "{}: tensor {name} has shape {:?}, expected {:?}: the checkpoint is for another model shape",
+                self.source.display(),
+                t.shape,
+                shape
+            ));
+        }
+        Ok(&t.values)
+    }
+
+    /// A metadata value that must be present.
+    pub fn meta(&self, key: &str) -> Result<&str> {
+        self.metadata
+            .get(key)
+            .map(String::as_str)
+            .ok_or_else(|| input_error!("{}: checkpoint has no '{key}' entry: the file is damaged or not an ipfn model", self.source.display()))
+    }
+
+    /// Serialises to safetensors bytes, adding the format tag and version.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut metadata: HashMap<String, String> = self.metadata.clone().into_iter().collect();
+        metadata.insert(FORMAT_KEY.into(), FORMAT_NAME.into());
+        metadata.insert(VERSION_KEY.into(), FORMAT_VERSION.to_string());
+        let bytes: Vec<(String, Vec<u8>, Vec<usize>)> = self
+            .tensors
+            .iter()
+            .map(|(name, t)| (name.clone(), t.values.iter().flat_map(|v| v.to_le_bytes()).collect(), t.shape.clone()))
+            .collect();
+        let views: Vec<(String, safetensors::tensor::TensorView<'_>)> = bytes
+            .iter()
+            .map(|(name, data, shape)| {
+                let view = safetensors::tensor::TensorView::new(safetensors::Dtype::F32, shape.clone(), data)
+                    .expect("tensor byte length matches its shape");
+                (name.clone(), view)
+            })
+            .collect();
+        safetensors::serialize(views, Some(metadata)).expect("checkpoint header fits safetensors' limits")
+    }
+
+    /// Writes the checkpoint to `path` atomically (temporary file, then rename).
+    pub fn save(&self, path: &Path) -> Result<()> {
+        write_atomic(path, &self.to_bytes())
+    }
+
+    /// Reads and validates a checkpoint file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|e| match e.kind() {
+            std::io::ErrorKind::NotFound => input_error!("{}: no such model file", path.display()),
+            _ => input_error!("{}: cannot read model: {e}", path.display()),
+        })?;
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// Parses checkpoint bytes; `path` names the source in errors.
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self> {
+        let not_ours = || {
+            input_error!(
+                "{}: not an ipfn model (to convert an authors' PyTorch generator, run `ipfn import {} -o model.ipfn`)",
+                path.display(),
+                path.display()
+            )
+        };
+        let (_, header) = safetensors::SafeTensors::read_metadata(bytes).map_err(|_| {
+            if path.extension().is_some_and(|e| e == "ipfn") {
+                input_error!("{}: corrupt model file (truncated or damaged)", path.display())
+            } else {
+                not_ours()
+            }
+        })?;
+        let metadata: BTreeMap<String, String> = header.metadata().clone().unwrap_or_default().into_iter().collect();
+        if metadata.get(FORMAT_KEY).map(String::as_str) != Some(FORMAT_NAME) {
+            return Err(not_ours());
+        }
+        let version: u32 = metadata
+            .get(VERSION_KEY)
+            .and_then(|v| v.parse().ok())
+            .ok_or_else(|| input_error!("{}: checkpoint has no readable format version", path.display()))?;
+        if version != FORMAT_VERSION {
+            return Err(input_error!(
+                "{}: checkpoint format version {version}, this ipfn reads version {FORMAT_VERSION}",
+                path.display()
+            ));
+        }
+        let st = safetensors::SafeTensors::deserialize(bytes)
+            .map_err(|e| input_error!("{}: corrupt model file: {e}", path.display()))?;
+        let mut tensors = BTreeMap::new();
+        for (name, view) in st.tensors() {
+            if view.dtype() != safetensors::Dtype::F32 {
+                return Err(input_error!("{}: tensor {name} is {:?}, expected F32", path.display(), view.dtype()));
+            }
+            let values = view.data().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+            tensors.insert(name, Tensor32 { shape: view.shape().to_vec(), values });
+        }
+        Ok(Self { source: path.to_path_buf(), metadata, tensors })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_and_corruption() {
+        let mut c = Checkpoint::new();
+        c.metadata.insert("config".into(), "{}".into());
+        c.insert("a", vec![2, 3], (0..6).map(|v| v as f32).collect());
+        let bytes = c.to_bytes();
+        let back = Checkpoint::from_bytes(&bytes, Path::new("m.ipfn")).unwrap();
+        assert_eq!(back.tensors, c.tensors);
+        assert_eq!(back.tensor("a", &[2, 3]).unwrap()[5], 5.0);
+        let err = back.tensor("a", &[3, 2]).unwrap_err().to_string();
+        assert!(err.contains("m.ipfn") && err.contains("another model shape"), "{err}");
+
+        let truncated = Checkpoint::from_bytes(&bytes[..bytes.len() - 7], Path::new("m.ipfn"));
+        assert!(truncated.unwrap_err().to_string().contains("corrupt"));
+        let garbage = Checkpoint::from_bytes(b"hello world, not a model", Path::new("x.ipfn"));
+        assert!(garbage.unwrap_err().to_string().contains("x.ipfn"));
+    }
+}
+
+/// Converts a generator saved by the authors' PyTorch code (nintendops/IPFN, `netG.pth`) into
+/// our config and weights. `octaves` and `crop` are not stored in their file: pass the values
+/// it was trained with (their defaults are 5 and 128).
+///
+/// Their state dict holds `K` `[dims]`, `mlp.blocks.{i}.layer.{weight,bias}` (1x1 convolutions,
+/// weight `[out, in, 1, 1]`, ReLU after each) and `mlp.last_conv.layer.*` (the output layer, tanh
+/// after it; their last block may repeat it under `mlp.blocks.{n}`).
+pub fn import_pytorch(
+    path: &Path,
+    octaves: usize,
+    crop: usize,
+) -> Result<(crate::generator::GeneratorConfig, crate::generator::GeneratorWeights)> {
+    use crate::generator::{GeneratorConfig, GeneratorWeights, LayerWeights};
+    use burn::store::pytorch::PytorchReader;
+
+    let file = path.display();
+    let reader = PytorchReader::new(path).map_err(|e| match std::fs::metadata(path) {
+        Err(_) => input_error!("{file}: no such file"),
+        Ok(_) => input_error!("{file}: not a readable PyTorch checkpoint: {e}"),
+    })?;
+    let tensors = reader.into_tensors();
+    let read = |name: &str| -> Result<(Vec<usize>, Vec<f32>)> {
+        let t = tensors
+            .get(name)
+            .ok_or_else(|| input_error!("{file}: no tensor '{name}': not an IPFN generator (netG) checkpoint"))?;
+        let bytes = t.read().map_err(|e| input_error!("{file}: tensor '{name}' is unreadable: {e}"))?;
+        let values: Vec<f32> = match t.dtype() {
+            burn::store::pytorch_reader::DType::F32 => {
+                bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+            }
+            burn::store::pytorch_reader::DType::F64 => bytes
+                .chunks_exact(8)
+                .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")) as f32)
+                .collect(),
+            other => return Err(input_error!("{file}: tensor '{name}' is {other:?}, expected float32")),
+        };
+        Ok((t.shape().to_vec(), values))
+    };
+    // A 1x1 convolution [out, in, 1, 1] as a linear layer [in, out].
+    let linear = |prefix: &str| -> Result<LayerWeights> {
+        let (shape, w) = read(&format!("{prefix}.weight"))?;
+        let (_, bias) = read(&format!("{prefix}.bias"))?;
+        if shape.len() != 4 || shape[2] != 1 || shape[3] != 1 || bias.len() != shape[0] {
+            return Err(input_error!("{file}: {prefix} has shape {shape:?}, expected a 1x1 convolution [out, in, 1, 1]"));
+        }
+        let (outputs, inputs) = (shape[0], shape[1]);
+        let mut weight = vec![0f32; inputs * outputs];
+        for o in 0..outputs {
+            for i in 0..inputs {
+                weight[i * outputs + o] = w[o * inputs + i];
+            }
+        }
+        Ok(LayerWeights { inputs, outputs, weight, bias })
+    };
+
+    let (_, k) = read("K")?;
+    let output = linear("mlp.last_conv.layer")?;
+    let mut layers = Vec::new();
+    while tensors.contains_key(&format!("mlp.blocks.{}.layer.weight", layers.len())) {
+        layers.push(linear(&format!("mlp.blocks.{}.layer", layers.len()))?);
+    }
+    if layers.last() == Some(&output) {
+        layers.pop(); // the output layer stored twice
+    }
+    if layers.is_empty() {
+        return Err(input_error!("{file}: no hidden layers (mlp.blocks.*): not an IPFN generator checkpoint"));
+    }
+    let dims = k.len();
+    let encoding = crate::encoding::channels(dims, octaves);
+    let width = layers[0].outputs;
+    if layers[0].inputs <= encoding {
+        return Err(input_error!(
+            "{file}: first layer takes {} inputs, fewer than the {encoding} encoding channels of {octaves} octaves; pass the right --octaves",
+            layers[0].inputs
+        ));
+    }
+    let config = GeneratorConfig::new()
+        .with_dims(dims)
+        .with_channels(output.outputs)
+        .with_octaves(octaves)
+        .with_latent_dim(layers[0].inputs - encoding)
+        .with_hidden_layers(layers.len())
+        .with_width(width)
+        .with_crop(crop);
+    config.validate().map_err(|e| input_error!("{file}: {e}"))?;
+    layers.push(output);
+    let expected = config.layer_shapes();
+    for (i, (l, &(inputs, outputs))) in layers.iter().zip(&expected).enumerate() {
+        if (l.inputs, l.outputs) != (inputs, outputs) {
+            return Err(input_error!(
+                "{file}: layer {i} is {}x{}, expected {inputs}x{outputs}: not a plain IPFN MLP",
+                l.inputs,
+                l.outputs
+            ));
+        }
+    }
+    Ok((config, GeneratorWeights { k, octaves, layers }))
+}

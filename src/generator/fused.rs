@@ -1,0 +1,120 @@
+//! The generator evaluated on the CPU as one fused loop per chunk of points.
+//!
+//! Per chunk the periodic encoding and the latent blend are computed in place, then each layer is
+//! one GEMM (`gemm` crate, single-threaded per chunk) followed by bias and ReLU on the same
+//! cache-resident buffer; chunks run in parallel on rayon's pool. This computes exactly what the
+//! burn [`Generator`](super::Generator) computes, without materialising activations for the whole
+//! image (memory is bounded by the chunk) and without a framework call per layer.
+
+use super::GeneratorWeights;
+use crate::encoding::encode_into;
+use crate::latent::LatentField;
+
+/// Points per chunk: 512 x 128 floats per activation buffer (256 KiB) stays in L2.
+pub const CHUNK_POINTS: usize = 512;
+
+/// Per-thread working memory for [`FusedGenerator::eval`].
+#[derive(Default)]
+pub struct Scratch {
+    a: Vec<f32>,
+    b: Vec<f32>,
+    u: Vec<f32>,
+}
+
+/// A CPU evaluator holding a host copy of the generator's weights.
+#[derive(Debug, Clone)]
+pub struct FusedGenerator {
+    weights: GeneratorWeights,
+}
+
+impl FusedGenerator {
+    pub fn new(weights: GeneratorWeights) -> Self {
+        Self { weights }
+    }
+
+    pub fn weights(&self) -> &GeneratorWeights {
+        &self.weights
+    }
+
+    /// Evaluates the generator at `n` points, looking the latent field up at
+    /// `u = p * latent_scale` (per axis).
+    ///
+    /// # Shapes
+    /// - `p`: `[n, dims]` coordinates (row-major)
+    /// - `out`: `[n, channels]`, written with tanh outputs in [-1, 1]
+    pub fn eval(&self, p: &[f32], field: &LatentField, latent_scale: &[f32], out: &mut [f32], scratch: &mut Scratch) {
+        let w = &self.weights;
+        let dims = w.k.len();
+        let n = p.len() / dims;
+        let enc = w.octaves * 2 * dims;
+        let input = enc + field.latent_dim();
+        debug_assert_eq!(w.layers[0].inputs, input);
+        let widest = w.layers.iter().map(|l| l.outputs.max(l.inputs)).max().unwrap_or(0);
+        scratch.a.resize(n * widest, 0.0);
+        scratch.b.resize(n * widest, 0.0);
+        scratch.u.resize(n * dims, 0.0);
+
+        // Input rows: [encoding(p / K), latent(p * latent_scale)]  -> [n, input]
+        for (i, point) in p.chunks_exact(dims).enumerate() {
+            let row = &mut scratch.a[i * input..(i + 1) * input];
+            encode_into(point, &w.k, w.octaves, &mut row[..enc]);
+            for d in 0..dims {
+                scratch.u[i * dims + d] = point[d] * latent_scale[d];
+            }
+        }
+        {
+            let ld = field.latent_dim();
+            for i in 0..n {
+                let (u, row) = (&scratch.u[i * dims..(i + 1) * dims], &mut scratch.a[i * input + enc..(i + 1) * input]);
+                field.at(u, &mut row[..ld]);
+            }
+        }
+
+        let (mut src, mut dst) = (&mut scratch.a, &mut scratch.b);
+        let last = w.layers.len() - 1;
+        for (l, layer) in w.layers.iter().enumerate() {
+            let (k, m) = (layer.inputs, layer.outputs);
+            // dst[n, m] = src[n, k] . W[k, m]
+            // SAFETY: every pointer addresses a buffer of at least the stated rows x columns,
+            // with the strides given (row-major), and dst does not alias src or W.
+            unsafe {
+                gemm::gemm(
+                    n,
+                    m,
+                    k,
+                    dst.as_mut_ptr(),
+                    1,
+                    m as isize,
+                    false,
+                    src.as_ptr(),
+                    1,
+                    k as isize,
+                    layer.weight.as_ptr(),
+                    1,
+                    m as isize,
+                    0.0,
+                    1.0,
+                    false,
+                    false,
+                    false,
+                    gemm::Parallelism::None,
+                );
+            }
+            let rows = &mut dst[..n * m];
+            if l < last {
+                for row in rows.chunks_exact_mut(m) {
+                    for (v, b) in row.iter_mut().zip(&layer.bias) {
+                        *v = (*v + b).max(0.0);
+                    }
+                }
+            } else {
+                for (row, o) in rows.chunks_exact(m).zip(out.chunks_exact_mut(m)) {
+                    for ((v, b), o) in row.iter().zip(&layer.bias).zip(o.iter_mut()) {
+                        *o = (v + b).tanh();
+                    }
+                }
+            }
+            std::mem::swap(&mut src, &mut dst);
+        }
+    }
+}

@@ -1,0 +1,263 @@
+//! The generator G: an MLP on coordinates (paper §3).
+//!
+//! `G(p) = tanh(MLP([encode(p / K), z(p * latent_scale)]))` where `K` is a learnable period scale
+//! per axis, `encode` is the periodic sin/cos encoding of [`crate::encoding`] and `z` is the latent
+//! random field of [`crate::latent`]. The MLP has `hidden_layers` linear layers of `width` units,
+//! each followed by ReLU, then one linear layer to `channels` outputs.
+//!
+//! Two evaluators share one set of weights ([`GeneratorWeights`]):
+//! - [`Generator`], a burn module: differentiable (training) and runs on any burn device (flex, wgpu).
+//! - [`fused::FusedGenerator`], a fused CPU loop for fast synthesis.
+
+pub mod fused;
+
+use burn::module::Param;
+use burn::nn::{Linear, LinearConfig};
+use burn::prelude::*;
+use burn::tensor::activation::relu;
+
+use crate::checkpoint::Checkpoint;
+use crate::encoding;
+use crate::input_error;
+
+/// Shape and constants of a generator. Stored in every checkpoint.
+#[derive(Config, Debug, PartialEq)]
+pub struct GeneratorConfig {
+    /// Spatial axes of the coordinates: 2 for images, 3 for volumes.
+    #[config(default = 2)]
+    pub dims: usize,
+    /// Output channels (3 for RGB; more for stacked material maps).
+    #[config(default = 3)]
+    pub channels: usize,
+    /// Octaves L of the periodic encoding (frequencies `2^j * pi`, j < L).
+    #[config(default = 5)]
+    pub octaves: usize,
+    /// Channels of the latent random field (5 in the paper).
+    #[config(default = 5)]
+    pub latent_dim: usize,
+    /// Linear + ReLU layers before the output layer.
+    #[config(default = 10)]
+    pub hidden_layers: usize,
+    /// Units per hidden layer.
+    #[config(default = 128)]
+    pub width: usize,
+    /// Softmax temperature of the latent field's corner blend (paper eq. 4).
+    #[config(default = 0.2)]
+    pub sigma: f32,
+    /// Latent lattice units per coordinate unit (the authors look the field up at `p / 2`).
+    #[config(default = 0.5)]
+    pub latent_scale: f32,
+    /// Training crop in pixels; a crop spans 2 coordinate units, so one exemplar pixel is
+    /// `2 / crop` units. Synthesis uses it for the default zoom.
+    #[config(default = 128)]
+    pub crop: usize,
+}
+
+impl GeneratorConfig {
+    /// Width of the MLP's input: encoding channels plus latent channels.
+    pub fn input_width(&self) -> usize {
+        encoding::channels(self.dims, self.octaves) + self.latent_dim
+    }
+
+    /// `(inputs, outputs)` of every linear layer, output layer last.
+    pub fn layer_shapes(&self) -> Vec<(usize, usize)> {
+        let mut shapes = Vec::with_capacity(self.hidden_layers + 1);
+        let mut inputs = self.input_width();
+        for _ in 0..self.hidden_layers {
+            shapes.push((inputs, self.width));
+            inputs = self.width;
+        }
+        shapes.push((inputs, self.channels));
+        shapes
+    }
+
+    /// Multiply-adds per generated point (for FLOP counts).
+    pub fn macs_per_point(&self) -> usize {
+        self.layer_shapes().iter().map(|(i, o)| i * o).sum()
+    }
+
+    /// Checks that the numbers describe a model this build can run.
+    pub fn validate(&self) -> crate::Result<()> {
+        let bad = |what: &str| Err(input_error!("invalid generator config: {what}"));
+        if !(2..=3).contains(&self.dims) {
+            return bad(&format!("dims = {}, expected 2 or 3", self.dims));
+        }
+        if self.channels == 0 || self.channels > 64 {
+            return bad(&format!("channels = {}, expected 1 to 64", self.channels));
+        }
+        if self.octaves == 0 || self.octaves > 20 {
+            return bad(&format!("octaves = {}, expected 1 to 20", self.octaves));
+        }
+        if self.latent_dim > crate::latent::MAX_LATENT_DIM {
+            return bad(&format!("latent_dim = {}, at most {}", self.latent_dim, crate::latent::MAX_LATENT_DIM));
+        }
+        if self.width == 0 || self.hidden_layers == 0 {
+            return bad("width and hidden_layers must be at least 1");
+        }
+        if !(self.sigma > 0.0 && self.latent_scale > 0.0) || self.crop == 0 {
+            return bad("sigma, latent_scale and crop must be positive");
+        }
+        Ok(())
+    }
+
+    /// A generator with PyTorch-style random initialisation and K = 1 on `device`.
+    pub fn init(&self, device: &Device) -> Generator {
+        let layers = self
+            .layer_shapes()
+            .into_iter()
+            .map(|(i, o)| LinearConfig::new(i, o).init(device))
+            .collect();
+        Generator {
+            k: Param::from_tensor(Tensor::ones([self.dims], device)),
+            layers,
+            octaves: self.octaves,
+        }
+    }
+}
+
+/// The generator as a burn module.
+#[derive(Module, Debug)]
+pub struct Generator {
+    /// Learnable period scale K, one per axis (`q = p / K`).
+    pub k: Param<Tensor<1>>,
+    /// Hidden layers (ReLU after each) then the output layer (tanh after it).
+    pub layers: Vec<Linear>,
+    /// Octaves of the periodic encoding.
+    pub octaves: usize,
+}
+
+impl Generator {
+    /// Evaluates G at `n` points.
+    ///
+    /// # Shapes
+    /// - `p`: `[n, dims]` coordinates
+    /// - `latent`: `[n, latent_dim]` latent field values at those points
+    /// - output: `[n, channels]` in [-1, 1]
+    pub fn forward(&self, p: Tensor<2>, latent: Tensor<2>) -> Tensor<2> {
+        let [_, dims] = p.dims();
+        let q = p / self.k.val().reshape([1, dims]); // [n, dims]
+        let enc = encoding::encode(q, self.octaves); // [n, 2 * L * dims]
+        let mut x = Tensor::cat(vec![enc, latent], 1); // [n, input_width]
+        let last = self.layers.len() - 1;
+        for (i, layer) in self.layers.iter().enumerate() {
+            x = layer.forward(x); // [n, width] or [n, channels]
+            if i < last {
+                x = relu(x);
+            }
+        }
+        x.tanh()
+    }
+
+    /// Host copy of the weights.
+    pub fn weights(&self) -> GeneratorWeights {
+        let read = |t: Tensor<2>| t.try_into_vec_as::<f32>().expect("generator weights are readable as f32");
+        GeneratorWeights {
+            k: self.k.val().try_into_vec_as::<f32>().expect("K is readable as f32"),
+            octaves: self.octaves,
+            layers: self
+                .layers
+                .iter()
+                .map(|l| {
+                    let [inputs, outputs] = l.weight.val().dims();
+                    LayerWeights {
+                        inputs,
+                        outputs,
+                        weight: read(l.weight.val()),
+                        bias: l
+                            .bias
+                            .as_ref()
+                            .map(|b| b.val().try_into_vec_as::<f32>().expect("bias is readable as f32"))
+                            .unwrap_or_else(|| vec![0.0; outputs]),
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    /// A generator on `device` holding `weights`.
+    pub fn from_weights(weights: &GeneratorWeights, device: &Device) -> Self {
+        let tensor2 = |v: &[f32], shape: [usize; 2]| Tensor::<2>::from_data(TensorData::new(v.to_vec(), shape), device);
+        let tensor1 = |v: &[f32]| Tensor::<1>::from_data(TensorData::new(v.to_vec(), [v.len()]), device);
+        let layers = weights
+            .layers
+            .iter()
+            .map(|l| {
+                let mut linear = LinearConfig::new(l.inputs, l.outputs).init(device);
+                linear.weight = Param::from_tensor(tensor2(&l.weight, [l.inputs, l.outputs]));
+                linear.bias = Some(Param::from_tensor(tensor1(&l.bias)));
+                linear
+            })
+            .collect();
+        Generator {
+            k: Param::from_tensor(tensor1(&weights.k)),
+            layers,
+            octaves: weights.octaves,
+        }
+    }
+}
+
+/// One linear layer's parameters on the host.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LayerWeights {
+    pub inputs: usize,
+    pub outputs: usize,
+    /// `[inputs, outputs]`, row-major (burn's `Linear` layout: `y = x W + b`).
+    pub weight: Vec<f32>,
+    pub bias: Vec<f32>,
+}
+
+/// A host copy of a generator's parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GeneratorWeights {
+    /// Period scale per axis.
+    pub k: Vec<f32>,
+    pub octaves: usize,
+    pub layers: Vec<LayerWeights>,
+}
+
+/// Checkpoint metadata key holding the [`GeneratorConfig`] as JSON.
+pub const CONFIG_KEY: &str = "generator_config";
+
+impl GeneratorWeights {
+    /// Random weights for `config` (PyTorch-style uniform init via burn, on the CPU).
+    pub fn random(config: &GeneratorConfig) -> Self {
+        config.init(&Device::flex()).weights()
+    }
+
+    /// Stores config and weights under the `generator.*` names.
+    pub fn write_to(&self, config: &GeneratorConfig, checkpoint: &mut Checkpoint) {
+        checkpoint
+            .metadata
+            .insert(CONFIG_KEY.into(), serde_json::to_string(config).expect("config serialises"));
+        checkpoint.insert("generator.k", vec![self.k.len()], self.k.clone());
+        for (i, l) in self.layers.iter().enumerate() {
+            checkpoint.insert(format!("generator.layers.{i}.weight"), vec![l.inputs, l.outputs], l.weight.clone());
+            checkpoint.insert(format!("generator.layers.{i}.bias"), vec![l.outputs], l.bias.clone());
+        }
+    }
+
+    /// Reads config and weights, checking every tensor against the config's shapes.
+    pub fn read_from(checkpoint: &Checkpoint) -> crate::Result<(GeneratorConfig, Self)> {
+        let path = checkpoint.source.display();
+        let config: GeneratorConfig = serde_json::from_str(checkpoint.meta(CONFIG_KEY)?)
+            .map_err(|e| input_error!("{path}: unreadable generator config: {e}"))?;
+        config.validate().map_err(|e| input_error!("{path}: {e}"))?;
+        let k = checkpoint.tensor("generator.k", &[config.dims])?.to_vec();
+        let mut layers = Vec::new();
+        for (i, (inputs, outputs)) in config.layer_shapes().into_iter().enumerate() {
+            layers.push(LayerWeights {
+                inputs,
+                outputs,
+                weight: checkpoint.tensor(&format!("generator.layers.{i}.weight"), &[inputs, outputs])?.to_vec(),
+                bias: checkpoint.tensor(&format!("generator.layers.{i}.bias"), &[outputs])?.to_vec(),
+            });
+        }
+        let extra = format!("generator.layers.{}.weight", config.hidden_layers + 1);
+        if checkpoint.tensors.contains_key(&extra) {
+            return Err(input_error!(
+                "{path}: has more layers than its config says: the checkpoint is for another model shape"
+            ));
+        }
+        Ok((config.clone(), GeneratorWeights { k, octaves: config.octaves, layers }))
+    }
+}

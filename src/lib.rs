@@ -1,0 +1,24 @@
+//! `ipfn`: the Implicit Periodic Field Network (Chen et al., "Exemplar-based Pattern Synthesis
+//! with Implicit Periodic Field Network", CVPR 2022) in Rust.
+//!
+//! Modules follow the method:
+//! - [`encoding`]: the periodic sin/cos encoding of `p / K`.
+//! - [`latent`]: the infinite, deterministic latent random field.
+//! - [`generator`]: the MLP generator (a burn module, and a fused CPU evaluator).
+//! - [`sample`]: coordinate grids of pixels.
+//! - [`synth`]: painting regions and whole images, tileable or not.
+//! - [`checkpoint`]: model files, and import of the authors' PyTorch generators.
+//! - [`io`]: arrays and images in and out, written atomically.
+//! - [`cli`]: the `ipfn` command line.
+
+pub mod checkpoint;
+pub mod cli;
+pub mod encoding;
+pub mod error;
+pub mod generator;
+pub mod io;
+pub mod latent;
+pub mod sample;
+pub mod synth;
+
+pub use error::{Error, Result};

@@ -1,0 +1,8 @@
+//! The `ipfn` binary: everything lives in the library; see `ipfn --help`.
+
+fn main() {
+    if let Err(error) = ipfn::cli::run() {
+        eprintln!("error: {error}");
+        std::process::exit(error.exit_code());
+    }
+}

@@ -1,0 +1,317 @@
+//! Synthesis: paint any region of the infinite plane with a trained generator.
+//!
+//! [`Synth`] is a builder whose options mirror `ipfn synth`'s flags one to one; it produces a
+//! [`Painter`], which renders regions (`[height, width, channels]`, values in [-1, 1]) or streams a
+//! whole image to disk in row bands, so memory is bounded by a band, not by the image.
+//!
+//! Tileable output (`tile`): the latent lattice is wrapped and K is snapped so that the tile spans
+//! a whole number of periods of every octave; the latent lattice scale is snapped likewise so the
+//! tile spans a whole number of lattice cells. The generator is then exactly periodic with the
+//! tile's size.
+
+use std::path::Path;
+use std::str::FromStr;
+
+use burn::prelude::*;
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::generator::fused::{CHUNK_POINTS, FusedGenerator, Scratch};
+use crate::generator::{Generator, GeneratorConfig, GeneratorWeights};
+use crate::input_error;
+use crate::io::{ImageWriter, OutputFormat};
+use crate::latent::LatentField;
+use crate::sample::PixelGrid;
+
+/// Where the generator runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DeviceChoice {
+    /// The fused CPU evaluator (fastest on a CPU).
+    Cpu,
+    /// burn's flex CPU backend (the same math through the framework; for checks and training).
+    Flex,
+    /// burn's wgpu backend (Vulkan, Metal, DX12; lavapipe without a GPU).
+    Wgpu,
+}
+
+impl FromStr for DeviceChoice {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "cpu" => Ok(Self::Cpu),
+            "flex" => Ok(Self::Flex),
+            "wgpu" | "gpu" => Ok(Self::Wgpu),
+            other => Err(input_error!("unknown device '{other}'; use cpu, flex or wgpu")),
+        }
+    }
+}
+
+impl DeviceChoice {
+    /// The burn device for this choice (`None` for the fused CPU path). wgpu is probed here so a
+    /// machine without an adapter gets an error instead of a panic on first use.
+    pub fn burn_device(&self) -> Result<Option<Device>> {
+        match self {
+            Self::Cpu => Ok(None),
+            Self::Flex => Ok(Some(Device::flex())),
+            Self::Wgpu => wgpu_device().map(Some),
+        }
+    }
+}
+
+/// The wgpu device, initialised once per process.
+pub fn wgpu_device() -> Result<Device> {
+    static DEVICE: std::sync::OnceLock<std::result::Result<Device, String>> = std::sync::OnceLock::new();
+    DEVICE
+        .get_or_init(|| Device::wgpu_options().init().map_err(|e| e.to_string()))
+        .clone()
+        .map_err(|e| {
+            input_error!("--device wgpu: no usable GPU adapter ({e}); install Vulkan drivers (e.g. mesa-vulkan-drivers) or use --device cpu")
+        })
+}
+
+/// The evaluator behind a [`Painter`].
+enum Engine {
+    Fused(FusedGenerator),
+    Burn { generator: Generator, device: Device },
+}
+
+/// Points per burn forward pass: bounds device memory (`width` activations per point).
+const BURN_CHUNK_POINTS: usize = 1 << 16;
+
+/// How K and the latent lattice were adjusted to make a tile.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TileAdjustment {
+    pub k_trained: Vec<f32>,
+    pub k_used: Vec<f32>,
+    pub latent_scale_trained: f32,
+    pub latent_scale_used: Vec<f32>,
+    /// Lattice period (cells) per axis.
+    pub lattice_period: Vec<i64>,
+}
+
+impl TileAdjustment {
+    /// One line for the user: how far K moved on each axis.
+    pub fn describe(&self) -> String {
+        let moved: Vec<String> = self
+            .k_trained
+            .iter()
+            .zip(&self.k_used)
+            .map(|(a, b)| format!("{a:.4} -> {b:.4} ({:+.2}%)", 100.0 * (b / a - 1.0)))
+            .collect();
+        let lat: Vec<String> = self
+            .latent_scale_used
+            .iter()
+            .map(|s| format!("{:+.2}%", 100.0 * (s / self.latent_scale_trained - 1.0)))
+            .collect();
+        format!(
+            "tile: K snapped {} (rows, cols); latent lattice {:?} cells, scale moved {}",
+            moved.join(", "),
+            self.lattice_period,
+            lat.join(", ")
+        )
+    }
+}
+
+/// Builder for a synthesis; each method matches an `ipfn synth` flag.
+#[derive(Debug, Clone)]
+pub struct Synth {
+    config: GeneratorConfig,
+    weights: GeneratorWeights,
+    seed: u64,
+    zoom: f64,
+    offset: [i64; 2],
+    tile: Option<[usize; 2]>,
+    device: DeviceChoice,
+}
+
+impl Synth {
+    /// A synthesis with `model`'s config and weights: seed 0, zoom 1, offset 0, CPU.
+    pub fn new(config: GeneratorConfig, weights: GeneratorWeights) -> Self {
+        Self {
+            config,
+            weights,
+            seed: 0,
+            zoom: 1.0,
+            offset: [0, 0],
+            tile: None,
+            device: DeviceChoice::Cpu,
+        }
+    }
+
+    /// `--seed`: which latent field (any u64).
+    pub fn seed(mut self, seed: u64) -> Self {
+        self.seed = seed;
+        self
+    }
+
+    /// `--zoom`: magnification; 1 paints one output pixel per exemplar pixel of training.
+    pub fn zoom(mut self, zoom: f64) -> Self {
+        self.zoom = zoom;
+        self
+    }
+
+    /// `--offset X,Y`: the top-left pixel of the output in the infinite plane.
+    pub fn offset(mut self, x: i64, y: i64) -> Self {
+        self.offset = [y, x];
+        self
+    }
+
+    /// `--tile`: make the output exactly periodic with period `width` x `height` pixels.
+    pub fn tile(mut self, width: usize, height: usize) -> Self {
+        self.tile = Some([height, width]);
+        self
+    }
+
+    /// `--device`.
+    pub fn device(mut self, device: DeviceChoice) -> Self {
+        self.device = device;
+        self
+    }
+
+    /// Validates the options and prepares the evaluator.
+    pub fn painter(self) -> Result<Painter> {
+        if self.config.dims != 2 {
+            return Err(input_error!("this model has {} coordinate axes; image synthesis needs a 2D model", self.config.dims));
+        }
+        if !(self.zoom.is_finite() && self.zoom > 0.0) {
+            return Err(input_error!("--zoom {}: must be a positive number", self.zoom));
+        }
+        let grid = PixelGrid::new(self.config.crop, self.zoom);
+        let mut weights = self.weights;
+        let mut field = LatentField::hashed(self.seed, 2, self.config.latent_dim).with_sigma(self.config.sigma);
+        let mut latent_scale = vec![self.config.latent_scale; 2];
+        let mut tile = None;
+        if let Some(period) = self.tile {
+            if period.contains(&0) {
+                return Err(input_error!("--tile: tile size must be at least 1 pixel"));
+            }
+            let k_trained = weights.k.clone();
+            let mut lattice_period = Vec::new();
+            for axis in 0..2 {
+                let span = period[axis] as f64 * grid.spacing;
+                let k = k_trained[axis] as f64;
+                let cycles = (span / (2.0 * k.abs())).round().max(1.0);
+                weights.k[axis] = (span / (2.0 * cycles)).copysign(k) as f32;
+                let cells = (span * self.config.latent_scale as f64).round().max(1.0);
+                latent_scale[axis] = (cells / span) as f32;
+                lattice_period.push(cells as i64);
+            }
+            field = field.periodic(&lattice_period);
+            tile = Some(TileAdjustment {
+                k_trained,
+                k_used: weights.k.clone(),
+                latent_scale_trained: self.config.latent_scale,
+                latent_scale_used: latent_scale.clone(),
+                lattice_period,
+            });
+        }
+        let engine = match self.device.burn_device()? {
+            None => Engine::Fused(FusedGenerator::new(weights)),
+            Some(device) => Engine::Burn {
+                generator: Generator::from_weights(&weights, &device),
+                device,
+            },
+        };
+        Ok(Painter {
+            engine,
+            field,
+            latent_scale,
+            grid,
+            offset: self.offset,
+            channels: self.config.channels,
+            tile,
+        })
+    }
+}
+
+/// A prepared synthesis: renders regions of the plane.
+pub struct Painter {
+    engine: Engine,
+    field: LatentField,
+    latent_scale: Vec<f32>,
+    grid: PixelGrid,
+    offset: [i64; 2],
+    channels: usize,
+    tile: Option<TileAdjustment>,
+}
+
+impl Painter {
+    pub fn channels(&self) -> usize {
+        self.channels
+    }
+
+    /// What `tile` changed, if it was asked for.
+    pub fn tile_adjustment(&self) -> Option<&TileAdjustment> {
+        self.tile.as_ref()
+    }
+
+    /// Renders the `width x height` region whose top-left pixel is `(x, y)` relative to the
+    /// offset.
+    ///
+    /// # Shapes
+    /// - output: `[height, width, channels]`, row-major, values in [-1, 1]
+    pub fn render(&self, x: i64, y: i64, width: usize, height: usize) -> Vec<f32> {
+        let (y0, x0) = (self.offset[0] + y, self.offset[1] + x);
+        let total = width * height;
+        let c = self.channels;
+        let mut out = vec![0f32; total * c];
+        match &self.engine {
+            Engine::Fused(generator) => {
+                out.par_chunks_mut(CHUNK_POINTS * c).enumerate().for_each_init(
+                    || (Scratch::default(), Vec::new()),
+                    |(scratch, coords), (chunk, values)| {
+                        let start = chunk * CHUNK_POINTS;
+                        let count = values.len() / c;
+                        self.grid.region_coordinates(y0, x0, width, start, count, coords);
+                        generator.eval(coords, &self.field, &self.latent_scale, values, scratch);
+                    },
+                );
+            }
+            Engine::Burn { generator, device } => {
+                let ld = self.field.latent_dim();
+                let (mut coords, mut u, mut latent) = (Vec::new(), Vec::new(), Vec::new());
+                for (chunk, values) in out.chunks_mut(BURN_CHUNK_POINTS * c).enumerate() {
+                    let count = values.len() / c;
+                    self.grid.region_coordinates(y0, x0, width, chunk * BURN_CHUNK_POINTS, count, &mut coords);
+                    u.clear();
+                    u.extend(coords.chunks_exact(2).flat_map(|p| [p[0] * self.latent_scale[0], p[1] * self.latent_scale[1]]));
+                    latent.resize(count * ld, 0.0);
+                    self.field.fill(&u, &mut latent);
+                    let p = Tensor::<2>::from_data(TensorData::new(coords.clone(), [count, 2]), device);
+                    let z = Tensor::<2>::from_data(TensorData::new(latent.clone(), [count, ld]), device);
+                    let y = generator.forward(p, z); // [count, channels]
+                    let host = y.try_into_vec_as::<f32>().expect("generator output is readable as f32");
+                    values.copy_from_slice(&host);
+                }
+            }
+        }
+        out
+    }
+
+    /// Renders `width x height` pixels into `path` in row bands of about `band_pixels` pixels,
+    /// calling `progress(rows_done)` after each band. The file appears only when complete.
+    pub fn write_image(
+        &self,
+        path: &Path,
+        format: OutputFormat,
+        width: usize,
+        height: usize,
+        band_pixels: usize,
+        mut progress: impl FnMut(usize),
+    ) -> Result<()> {
+        let mut writer = ImageWriter::create(path, format, width, height, self.channels)?;
+        let band_rows = (band_pixels / width.max(1)).clamp(1, height);
+        let mut row = 0;
+        while row < height {
+            let rows = band_rows.min(height - row);
+            let band = self.render(0, row as i64, width, rows);
+            writer.write_rows(&band)?;
+            row += rows;
+            progress(row);
+        }
+        writer.finish()
+    }
+}
+
+/// Default band size for [`Painter::write_image`]: 1 Mi pixels (12 MiB of RGB floats).
+pub const DEFAULT_BAND_PIXELS: usize = 1 << 20;

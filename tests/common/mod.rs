@@ -1,0 +1,58 @@
+//! Shared test helpers.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+
+use ipfn::synth::DeviceChoice;
+
+/// Runs one test body on every device, like candle's `test_device!`: the fused CPU evaluator,
+/// burn-flex and burn-wgpu. Backends cannot drift apart unnoticed.
+///
+/// wgpu needs a Vulkan (or Metal/DX12) adapter; CI installs lavapipe. Set `IPFN_SKIP_WGPU=1` to
+/// skip the wgpu variants on a machine without one (they then print that they were skipped).
+#[macro_export]
+macro_rules! test_device {
+    ($body:ident, $cpu:ident, $flex:ident, $wgpu:ident) => {
+        #[test]
+        fn $cpu() {
+            $body(ipfn::synth::DeviceChoice::Cpu);
+        }
+        #[test]
+        fn $flex() {
+            $body(ipfn::synth::DeviceChoice::Flex);
+        }
+        #[test]
+        fn $wgpu() {
+            if $crate::common::skip_wgpu() {
+                return;
+            }
+            $body(ipfn::synth::DeviceChoice::Wgpu);
+        }
+    };
+}
+
+pub fn skip_wgpu() -> bool {
+    if std::env::var_os("IPFN_SKIP_WGPU").is_some_and(|v| v == "1") {
+        eprintln!("IPFN_SKIP_WGPU=1: wgpu variant skipped");
+        return true;
+    }
+    false
+}
+
+pub fn data(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name)
+}
+
+pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len(), "compared arrays differ in length");
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
+}
+
+/// The honeycomb generator converted from the authors' `netG.pth`.
+pub fn honeycomb() -> (ipfn::generator::GeneratorConfig, ipfn::generator::GeneratorWeights) {
+    ipfn::checkpoint::import_pytorch(&data("official-honeycomb/netG.pth"), 5, 128).expect("netG.pth imports")
+}
+
+pub fn all_devices() -> [DeviceChoice; 3] {
+    [DeviceChoice::Cpu, DeviceChoice::Flex, DeviceChoice::Wgpu]
+}
