@@ -44,9 +44,21 @@ fn time(runs: usize, mut f: impl FnMut()) -> f64 {
 fn burn_floor(shapes: &[(usize, usize)], points: usize) {
     let device = Device::flex();
     let chunk = 4096;
-    let weights: Vec<Tensor<2>> =
-        shapes.iter().map(|&(i, o)| Tensor::random([i, o], burn::tensor::Distribution::Uniform(-0.1, 0.1), &device)).collect();
-    let x0 = Tensor::<2>::random([chunk, shapes[0].0], burn::tensor::Distribution::Uniform(-1.0, 1.0), &device);
+    let weights: Vec<Tensor<2>> = shapes
+        .iter()
+        .map(|&(i, o)| {
+            Tensor::random(
+                [i, o],
+                burn::tensor::Distribution::Uniform(-0.1, 0.1),
+                &device,
+            )
+        })
+        .collect();
+    let x0 = Tensor::<2>::random(
+        [chunk, shapes[0].0],
+        burn::tensor::Distribution::Uniform(-1.0, 1.0),
+        &device,
+    );
     let mut done = 0;
     while done < points {
         let mut x = x0.clone();
@@ -68,7 +80,27 @@ fn gemm_floor(shapes: &[(usize, usize)], points: usize) {
         |(a, b), _| {
             for (w, &(k, n)) in weights.iter().zip(shapes) {
                 unsafe {
-                    gemm::gemm(chunk, n, k, b.as_mut_ptr(), 1, n as isize, false, a.as_ptr(), 1, k as isize, w.as_ptr(), 1, n as isize, 0.0, 1.0, false, false, false, gemm::Parallelism::None);
+                    gemm::gemm(
+                        chunk,
+                        n,
+                        k,
+                        b.as_mut_ptr(),
+                        1,
+                        n as isize,
+                        false,
+                        a.as_ptr(),
+                        1,
+                        k as isize,
+                        w.as_ptr(),
+                        1,
+                        n as isize,
+                        0.0,
+                        1.0,
+                        false,
+                        false,
+                        false,
+                        gemm::Parallelism::None,
+                    );
                 }
                 std::mem::swap(a, b);
             }
@@ -77,18 +109,32 @@ fn gemm_floor(shapes: &[(usize, usize)], points: usize) {
 }
 
 fn main() {
-    let runs: usize = std::env::var("IPFN_BENCH_RUNS").ok().and_then(|v| v.parse().ok()).unwrap_or(3);
+    let runs: usize = std::env::var("IPFN_BENCH_RUNS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(3);
     let sizes: Vec<usize> = std::env::var("IPFN_BENCH_SIZES")
         .ok()
         .map(|v| v.split(',').filter_map(|s| s.trim().parse().ok()).collect())
         .unwrap_or_else(|| vec![256, 512, 1024]);
-    let shipped = Checkpoint::from_bytes(ipfn::cli::SHIPPED_HONEYCOMB, std::path::Path::new("shipped")).unwrap();
+    let shipped = Checkpoint::from_bytes(
+        ipfn::cli::SHIPPED_HONEYCOMB,
+        std::path::Path::new("shipped"),
+    )
+    .unwrap();
     let (config, weights) = GeneratorWeights::read_from(&shipped).unwrap();
     let shapes = config.layer_shapes();
     let flop_per_point = 2.0 * config.macs_per_point() as f64;
-    let painter = Synth::new(config, weights).seed(1).device(DeviceChoice::Cpu).painter().unwrap();
+    let painter = Synth::new(config, weights)
+        .seed(1)
+        .device(DeviceChoice::Cpu)
+        .painter()
+        .unwrap();
 
-    println!("synth on CPU ({} threads), honeycomb generator (10x128 MLP), median of {runs} runs", rayon::current_num_threads());
+    println!(
+        "synth on CPU ({} threads), honeycomb generator (10x128 MLP), median of {runs} runs",
+        rayon::current_num_threads()
+    );
     println!(
         "| size | ours | burn floor | ours / burn floor | GEMM floor | ours / GEMM floor | ours GFLOP/s | authors' code | authors / ours |"
     );
@@ -101,8 +147,16 @@ fn main() {
         });
         let burn = time(runs, || burn_floor(&shapes, points));
         let gemm = time(runs, || gemm_floor(&shapes, points));
-        let authors = if n == 1024 { format!("{AUTHORS_1024_S:.1} s (reference)") } else { "-".into() };
-        let speedup = if n == 1024 { format!("{:.1}x", AUTHORS_1024_S / ours) } else { "-".into() };
+        let authors = if n == 1024 {
+            format!("{AUTHORS_1024_S:.1} s (reference)")
+        } else {
+            "-".into()
+        };
+        let speedup = if n == 1024 {
+            format!("{:.1}x", AUTHORS_1024_S / ours)
+        } else {
+            "-".into()
+        };
         println!(
             "| {n}² | {ours:.3} s | {burn:.3} s ({:.0} GFLOP/s) | {:.2} | {gemm:.3} s ({:.0} GFLOP/s) | {:.2} | {:.0} | {authors} | {speedup} |",
             gflop / burn,

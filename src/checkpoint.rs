@@ -42,14 +42,21 @@ impl Checkpoint {
     }
 
     pub fn insert(&mut self, name: impl Into<String>, shape: Vec<usize>, values: Vec<f32>) {
-        assert_eq!(shape.iter().product::<usize>(), values.len(), "tensor shape and data disagree");
+        assert_eq!(
+            shape.iter().product::<usize>(),
+            values.len(),
+            "tensor shape and data disagree"
+        );
         self.tensors.insert(name.into(), Tensor32 { shape, values });
     }
 
     /// The tensor `name`, which must have `shape`; an error names the file otherwise.
     pub fn tensor(&self, name: &str, shape: &[usize]) -> Result<&[f32]> {
         let t = self.tensors.get(name).ok_or_else(|| {
-            input_error!("{}: tensor {name} is missing: the file is not a model of this kind", self.source.display())
+            input_error!(
+                "{}: tensor {name} is missing: the file is not a model of this kind",
+                self.source.display()
+            )
         })?;
         if t.shape != shape {
             return Err(input_error!(
@@ -64,10 +71,12 @@ impl Checkpoint {
 
     /// A metadata value that must be present.
     pub fn meta(&self, key: &str) -> Result<&str> {
-        self.metadata
-            .get(key)
-            .map(String::as_str)
-            .ok_or_else(|| input_error!("{}: checkpoint has no '{key}' entry: the file is damaged or not an ipfn model", self.source.display()))
+        self.metadata.get(key).map(String::as_str).ok_or_else(|| {
+            input_error!(
+                "{}: checkpoint has no '{key}' entry: the file is damaged or not an ipfn model",
+                self.source.display()
+            )
+        })
     }
 
     /// Serialises to safetensors bytes, adding the format tag and version.
@@ -78,17 +87,28 @@ impl Checkpoint {
         let bytes: Vec<(String, Vec<u8>, Vec<usize>)> = self
             .tensors
             .iter()
-            .map(|(name, t)| (name.clone(), t.values.iter().flat_map(|v| v.to_le_bytes()).collect(), t.shape.clone()))
+            .map(|(name, t)| {
+                (
+                    name.clone(),
+                    t.values.iter().flat_map(|v| v.to_le_bytes()).collect(),
+                    t.shape.clone(),
+                )
+            })
             .collect();
         let views: Vec<(String, safetensors::tensor::TensorView<'_>)> = bytes
             .iter()
             .map(|(name, data, shape)| {
-                let view = safetensors::tensor::TensorView::new(safetensors::Dtype::F32, shape.clone(), data)
-                    .expect("tensor byte length matches its shape");
+                let view = safetensors::tensor::TensorView::new(
+                    safetensors::Dtype::F32,
+                    shape.clone(),
+                    data,
+                )
+                .expect("tensor byte length matches its shape");
                 (name.clone(), view)
             })
             .collect();
-        safetensors::serialize(views, Some(metadata)).expect("checkpoint header fits safetensors' limits")
+        safetensors::serialize(views, Some(metadata))
+            .expect("checkpoint header fits safetensors' limits")
     }
 
     /// Writes the checkpoint to `path` atomically (temporary file, then rename).
@@ -116,19 +136,32 @@ impl Checkpoint {
         };
         let (_, header) = safetensors::SafeTensors::read_metadata(bytes).map_err(|_| {
             if path.extension().is_some_and(|e| e == "ipfn") {
-                input_error!("{}: corrupt model file (truncated or damaged)", path.display())
+                input_error!(
+                    "{}: corrupt model file (truncated or damaged)",
+                    path.display()
+                )
             } else {
                 not_ours()
             }
         })?;
-        let metadata: BTreeMap<String, String> = header.metadata().clone().unwrap_or_default().into_iter().collect();
+        let metadata: BTreeMap<String, String> = header
+            .metadata()
+            .clone()
+            .unwrap_or_default()
+            .into_iter()
+            .collect();
         if metadata.get(FORMAT_KEY).map(String::as_str) != Some(FORMAT_NAME) {
             return Err(not_ours());
         }
         let version: u32 = metadata
             .get(VERSION_KEY)
             .and_then(|v| v.parse().ok())
-            .ok_or_else(|| input_error!("{}: checkpoint has no readable format version", path.display()))?;
+            .ok_or_else(|| {
+                input_error!(
+                    "{}: checkpoint has no readable format version",
+                    path.display()
+                )
+            })?;
         if version != FORMAT_VERSION {
             return Err(input_error!(
                 "{}: checkpoint format version {version}, this ipfn reads version {FORMAT_VERSION}",
@@ -140,35 +173,30 @@ impl Checkpoint {
         let mut tensors = BTreeMap::new();
         for (name, view) in st.tensors() {
             if view.dtype() != safetensors::Dtype::F32 {
-                return Err(input_error!("{}: tensor {name} is {:?}, expected F32", path.display(), view.dtype()));
+                return Err(input_error!(
+                    "{}: tensor {name} is {:?}, expected F32",
+                    path.display(),
+                    view.dtype()
+                ));
             }
-            let values = view.data().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
-            tensors.insert(name, Tensor32 { shape: view.shape().to_vec(), values });
+            let values = view
+                .data()
+                .chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .collect();
+            tensors.insert(
+                name,
+                Tensor32 {
+                    shape: view.shape().to_vec(),
+                    values,
+                },
+            );
         }
-        Ok(Self { source: path.to_path_buf(), metadata, tensors })
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn round_trip_and_corruption() {
-        let mut c = Checkpoint::new();
-        c.metadata.insert("config".into(), "{}".into());
-        c.insert("a", vec![2, 3], (0..6).map(|v| v as f32).collect());
-        let bytes = c.to_bytes();
-        let back = Checkpoint::from_bytes(&bytes, Path::new("m.ipfn")).unwrap();
-        assert_eq!(back.tensors, c.tensors);
-        assert_eq!(back.tensor("a", &[2, 3]).unwrap()[5], 5.0);
-        let err = back.tensor("a", &[3, 2]).unwrap_err().to_string();
-        assert!(err.contains("m.ipfn") && err.contains("another model shape"), "{err}");
-
-        let truncated = Checkpoint::from_bytes(&bytes[..bytes.len() - 7], Path::new("m.ipfn"));
-        assert!(truncated.unwrap_err().to_string().contains("corrupt"));
-        let garbage = Checkpoint::from_bytes(b"hello world, not a model", Path::new("x.ipfn"));
-        assert!(garbage.unwrap_err().to_string().contains("x.ipfn"));
+        Ok(Self {
+            source: path.to_path_buf(),
+            metadata,
+            tensors,
+        })
     }
 }
 
@@ -183,7 +211,10 @@ pub fn import_pytorch(
     path: &Path,
     octaves: usize,
     crop: usize,
-) -> Result<(crate::generator::GeneratorConfig, crate::generator::GeneratorWeights)> {
+) -> Result<(
+    crate::generator::GeneratorConfig,
+    crate::generator::GeneratorWeights,
+)> {
     use crate::generator::{GeneratorConfig, GeneratorWeights, LayerWeights};
     use burn::store::pytorch::PytorchReader;
 
@@ -194,19 +225,26 @@ pub fn import_pytorch(
     })?;
     let tensors = reader.into_tensors();
     let read = |name: &str| -> Result<(Vec<usize>, Vec<f32>)> {
-        let t = tensors
-            .get(name)
-            .ok_or_else(|| input_error!("{file}: no tensor '{name}': not an IPFN generator (netG) checkpoint"))?;
-        let bytes = t.read().map_err(|e| input_error!("{file}: tensor '{name}' is unreadable: {e}"))?;
+        let t = tensors.get(name).ok_or_else(|| {
+            input_error!("{file}: no tensor '{name}': not an IPFN generator (netG) checkpoint")
+        })?;
+        let bytes = t
+            .read()
+            .map_err(|e| input_error!("{file}: tensor '{name}' is unreadable: {e}"))?;
         let values: Vec<f32> = match t.dtype() {
-            burn::store::pytorch_reader::DType::F32 => {
-                bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
-            }
+            burn::store::pytorch_reader::DType::F32 => bytes
+                .chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .collect(),
             burn::store::pytorch_reader::DType::F64 => bytes
                 .chunks_exact(8)
                 .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")) as f32)
                 .collect(),
-            other => return Err(input_error!("{file}: tensor '{name}' is {other:?}, expected float32")),
+            other => {
+                return Err(input_error!(
+                    "{file}: tensor '{name}' is {other:?}, expected float32"
+                ));
+            }
         };
         Ok((t.shape().to_vec(), values))
     };
@@ -215,7 +253,9 @@ pub fn import_pytorch(
         let (shape, w) = read(&format!("{prefix}.weight"))?;
         let (_, bias) = read(&format!("{prefix}.bias"))?;
         if shape.len() != 4 || shape[2] != 1 || shape[3] != 1 || bias.len() != shape[0] {
-            return Err(input_error!("{file}: {prefix} has shape {shape:?}, expected a 1x1 convolution [out, in, 1, 1]"));
+            return Err(input_error!(
+                "{file}: {prefix} has shape {shape:?}, expected a 1x1 convolution [out, in, 1, 1]"
+            ));
         }
         let (outputs, inputs) = (shape[0], shape[1]);
         let mut weight = vec![0f32; inputs * outputs];
@@ -224,7 +264,12 @@ pub fn import_pytorch(
                 weight[i * outputs + o] = w[o * inputs + i];
             }
         }
-        Ok(LayerWeights { inputs, outputs, weight, bias })
+        Ok(LayerWeights {
+            inputs,
+            outputs,
+            weight,
+            bias,
+        })
     };
 
     let (_, k) = read("K")?;
@@ -237,7 +282,9 @@ pub fn import_pytorch(
         layers.pop(); // the output layer stored twice
     }
     if layers.is_empty() {
-        return Err(input_error!("{file}: no hidden layers (mlp.blocks.*): not an IPFN generator checkpoint"));
+        return Err(input_error!(
+            "{file}: no hidden layers (mlp.blocks.*): not an IPFN generator checkpoint"
+        ));
     }
     let dims = k.len();
     let encoding = crate::encoding::channels(dims, octaves);
@@ -269,4 +316,30 @@ pub fn import_pytorch(
         }
     }
     Ok((config, GeneratorWeights { k, octaves, layers }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_and_corruption() {
+        let mut c = Checkpoint::new();
+        c.metadata.insert("config".into(), "{}".into());
+        c.insert("a", vec![2, 3], (0..6).map(|v| v as f32).collect());
+        let bytes = c.to_bytes();
+        let back = Checkpoint::from_bytes(&bytes, Path::new("m.ipfn")).unwrap();
+        assert_eq!(back.tensors, c.tensors);
+        assert_eq!(back.tensor("a", &[2, 3]).unwrap()[5], 5.0);
+        let err = back.tensor("a", &[3, 2]).unwrap_err().to_string();
+        assert!(
+            err.contains("m.ipfn") && err.contains("another model shape"),
+            "{err}"
+        );
+
+        let truncated = Checkpoint::from_bytes(&bytes[..bytes.len() - 7], Path::new("m.ipfn"));
+        assert!(truncated.unwrap_err().to_string().contains("corrupt"));
+        let garbage = Checkpoint::from_bytes(b"hello world, not a model", Path::new("x.ipfn"));
+        assert!(garbage.unwrap_err().to_string().contains("x.ipfn"));
+    }
 }

@@ -104,8 +104,14 @@ pub struct ImportArgs {
 }
 
 fn parse_offset(s: &str) -> std::result::Result<(i64, i64), String> {
-    let (x, y) = s.split_once(',').ok_or_else(|| format!("'{s}': expected X,Y (e.g. 512,-256)"))?;
-    let parse = |v: &str| v.trim().parse::<i64>().map_err(|_| format!("'{s}': expected two integers X,Y"));
+    let (x, y) = s
+        .split_once(',')
+        .ok_or_else(|| format!("'{s}': expected X,Y (e.g. 512,-256)"))?;
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<i64>()
+            .map_err(|_| format!("'{s}': expected two integers X,Y"))
+    };
     Ok((parse(x)?, parse(y)?))
 }
 
@@ -141,7 +147,11 @@ pub fn choose_model(explicit: Option<&Path>, dir: &Path) -> Result<ChosenModel> 
         },
     };
     let (config, weights) = GeneratorWeights::read_from(&checkpoint)?;
-    Ok(ChosenModel { config, weights, description })
+    Ok(ChosenModel {
+        config,
+        weights,
+        description,
+    })
 }
 
 /// The newest `*.ipfn` in `dir` or `runs/*/latest.ipfn` under it.
@@ -157,7 +167,11 @@ pub fn most_recent_model(dir: &Path) -> Option<PathBuf> {
             .collect()
     };
     candidates.extend(ipfn_files(dir));
-    for run in std::fs::read_dir(dir.join("runs")).into_iter().flatten().flatten() {
+    for run in std::fs::read_dir(dir.join("runs"))
+        .into_iter()
+        .flatten()
+        .flatten()
+    {
         let latest = run.path().join("latest.ipfn");
         if latest.is_file() {
             candidates.push(latest);
@@ -175,12 +189,17 @@ fn synth(args: SynthArgs) -> Result<()> {
     let width = args.width.or(args.size).unwrap_or(512);
     let height = args.height.or(args.size).unwrap_or(512);
     if width == 0 || height == 0 {
-        return Err(input_error!("size {width}x{height}: width and height must be at least 1"));
+        return Err(input_error!(
+            "size {width}x{height}: width and height must be at least 1"
+        ));
     }
     let format = OutputFormat::from_path(&args.out, args.bits)?;
     crate::io::check_destination(&args.out)?;
     if !(args.zoom.is_finite() && args.zoom > 0.0) {
-        return Err(input_error!("--zoom {}: must be a positive number", args.zoom));
+        return Err(input_error!(
+            "--zoom {}: must be a positive number",
+            args.zoom
+        ));
     }
     let model = choose_model(args.model.as_deref(), Path::new("."))?;
     format.check_size(&args.out, width, height, model.config.channels)?;
@@ -206,19 +225,29 @@ fn synth(args: SynthArgs) -> Result<()> {
     }
 
     let start = Instant::now();
-    let bar = (!args.quiet && std::io::stderr().is_terminal() && width * height >= 1 << 22).then(|| {
-        let bar = indicatif::ProgressBar::new(height as u64);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} rows  {elapsed} (eta {eta})")
+    let bar =
+        (!args.quiet && std::io::stderr().is_terminal() && width * height >= 1 << 22).then(|| {
+            let bar = indicatif::ProgressBar::new(height as u64);
+            bar.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{bar:40} {pos}/{len} rows  {elapsed} (eta {eta})",
+                )
                 .expect("valid progress template"),
-        );
-        bar
-    });
-    painter.write_image(&args.out, format, width, height, DEFAULT_BAND_PIXELS, |rows| {
-        if let Some(bar) = &bar {
-            bar.set_position(rows as u64);
-        }
-    })?;
+            );
+            bar
+        });
+    painter.write_image(
+        &args.out,
+        format,
+        width,
+        height,
+        DEFAULT_BAND_PIXELS,
+        |rows| {
+            if let Some(bar) = &bar {
+                bar.set_position(rows as u64);
+            }
+        },
+    )?;
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
@@ -234,7 +263,10 @@ fn synth(args: SynthArgs) -> Result<()> {
 
 fn import(args: ImportArgs) -> Result<()> {
     if args.out.extension().is_none_or(|e| e != "ipfn") {
-        return Err(input_error!("{}: model files end in .ipfn", args.out.display()));
+        return Err(input_error!(
+            "{}: model files end in .ipfn",
+            args.out.display()
+        ));
     }
     let (config, weights) = checkpoint::import_pytorch(&args.pth, args.octaves, args.crop)?;
     let mut ckpt = Checkpoint::new();
@@ -243,7 +275,10 @@ fn import(args: ImportArgs) -> Result<()> {
         format!(
             "imported by ipfn {} from {}",
             env!("CARGO_PKG_VERSION"),
-            args.pth.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+            args.pth
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default()
         ),
     );
     weights.write_to(&config, &mut ckpt);

@@ -14,11 +14,16 @@ use crate::input_error;
 
 /// Reads a float32 (or float64, converted) `.npy` array: `(shape, values)` in C order.
 pub fn read_npy(path: &Path) -> Result<(Vec<usize>, Vec<f32>)> {
-    let bytes = std::fs::read(path).map_err(|e| input_error!("{}: cannot read: {e}", path.display()))?;
-    let corrupt = |e: std::io::Error| input_error!("{}: not a valid .npy array: {e}", path.display());
+    let bytes =
+        std::fs::read(path).map_err(|e| input_error!("{}: cannot read: {e}", path.display()))?;
+    let corrupt =
+        |e: std::io::Error| input_error!("{}: not a valid .npy array: {e}", path.display());
     let npy = npyz::NpyFile::new(&bytes[..]).map_err(corrupt)?;
     if npy.order() != npyz::Order::C {
-        return Err(input_error!("{}: Fortran-ordered .npy arrays are not supported; save it in C order", path.display()));
+        return Err(input_error!(
+            "{}: Fortran-ordered .npy arrays are not supported; save it in C order",
+            path.display()
+        ));
     }
     let shape: Vec<usize> = npy.shape().iter().map(|&d| d as usize).collect();
     let values = match npy.dtype() {
@@ -26,10 +31,18 @@ pub fn read_npy(path: &Path) -> Result<(Vec<usize>, Vec<f32>)> {
             npy.into_vec::<f32>().map_err(corrupt)?
         }
         npyz::DType::Plain(t) if t.type_char() == npyz::TypeChar::Float && t.size_field() == 8 => {
-            npy.into_vec::<f64>().map_err(corrupt)?.into_iter().map(|v| v as f32).collect()
+            npy.into_vec::<f64>()
+                .map_err(corrupt)?
+                .into_iter()
+                .map(|v| v as f32)
+                .collect()
         }
         other => {
-            return Err(input_error!("{}: expected a float32 or float64 array, found {}", path.display(), other.descr()));
+            return Err(input_error!(
+                "{}: expected a float32 or float64 array, found {}",
+                path.display(),
+                other.descr()
+            ));
         }
     };
     Ok((shape, values))
@@ -51,10 +64,17 @@ pub fn check_destination(path: &Path) -> Result<&Path> {
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        return Err(input_error!("{}: cannot write: folder {} does not exist", path.display(), dir.display()));
+        return Err(input_error!(
+            "{}: cannot write: folder {} does not exist",
+            path.display(),
+            dir.display()
+        ));
     }
     if path.is_dir() {
-        return Err(input_error!("{}: cannot write: it is a folder", path.display()));
+        return Err(input_error!(
+            "{}: cannot write: it is a folder",
+            path.display()
+        ));
     }
     Ok(dir)
 }
@@ -62,13 +82,19 @@ pub fn check_destination(path: &Path) -> Result<&Path> {
 impl AtomicFile {
     pub fn create(path: &Path) -> Result<Self> {
         let dir = check_destination(path)?;
-        let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
         let temp = tempfile::Builder::new()
             .prefix(&format!(".{name}."))
             .suffix(".tmp")
             .tempfile_in(dir)
             .map_err(|e| input_error!("{}: cannot write: {e}", path.display()))?;
-        Ok(Self { temp, path: path.to_path_buf() })
+        Ok(Self {
+            temp,
+            path: path.to_path_buf(),
+        })
     }
 
     pub fn file(&mut self) -> &mut File {
@@ -82,16 +108,21 @@ impl AtomicFile {
         #[cfg(unix)]
         {
             use std::os::unix::fs::PermissionsExt;
-            let mode = std::fs::metadata(&path).map(|m| m.permissions().mode()).unwrap_or(0o644);
-            let _ = self.temp.as_file().set_permissions(std::fs::Permissions::from_mode(mode));
+            let mode = std::fs::metadata(&path)
+                .map(|m| m.permissions().mode())
+                .unwrap_or(0o644);
+            let _ = self
+                .temp
+                .as_file()
+                .set_permissions(std::fs::Permissions::from_mode(mode));
         }
         self.temp
             .as_file()
             .sync_all()
             .map_err(|e| Error::Runtime(format!("{}: cannot write: {e}", path.display())))?;
-        self.temp
-            .persist(&path)
-            .map_err(|e| Error::Runtime(format!("{}: cannot write: {}", path.display(), e.error)))?;
+        self.temp.persist(&path).map_err(|e| {
+            Error::Runtime(format!("{}: cannot write: {}", path.display(), e.error))
+        })?;
         Ok(())
     }
 }
@@ -119,47 +150,85 @@ pub enum OutputFormat {
 impl OutputFormat {
     /// The format for `path`'s extension; `bits` applies to PNG only (8 or 16).
     pub fn from_path(path: &Path, bits: u8) -> Result<Self> {
-        let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
         let format = match ext.as_str() {
             "png" => OutputFormat::Png { bits },
             "exr" => OutputFormat::Exr,
             "npy" => OutputFormat::Npy,
-            "" => return Err(input_error!("{}: no file extension; use .png, .exr or .npy", path.display())),
-            other => return Err(input_error!("{}: unknown extension .{other}; use .png, .exr or .npy", path.display())),
+            "" => {
+                return Err(input_error!(
+                    "{}: no file extension; use .png, .exr or .npy",
+                    path.display()
+                ));
+            }
+            other => {
+                return Err(input_error!(
+                    "{}: unknown extension .{other}; use .png, .exr or .npy",
+                    path.display()
+                ));
+            }
         };
         if !matches!(bits, 8 | 16) {
-            return Err(input_error!("--bits {bits}: PNG holds 8 or 16 bits per channel"));
+            return Err(input_error!(
+                "--bits {bits}: PNG holds 8 or 16 bits per channel"
+            ));
         }
         if bits == 16 && format != (OutputFormat::Png { bits: 16 }) {
-            return Err(input_error!("{}: --bits 16 applies to .png only", path.display()));
+            return Err(input_error!(
+                "{}: --bits 16 applies to .png only",
+                path.display()
+            ));
         }
         Ok(format)
     }
 
     /// Checks that an image of this size and channel count fits the format.
-    pub fn check_size(&self, path: &Path, width: usize, height: usize, channels: usize) -> Result<()> {
+    pub fn check_size(
+        &self,
+        path: &Path,
+        width: usize,
+        height: usize,
+        channels: usize,
+    ) -> Result<()> {
         let limit: usize = match self {
             OutputFormat::Png { .. } => (1 << 31) - 1, // PNG stores dimensions as 31-bit integers
             OutputFormat::Exr => i32::MAX as usize,
             OutputFormat::Npy => usize::MAX,
         };
         if width == 0 || height == 0 {
-            return Err(input_error!("{}: size {width}x{height}: width and height must be at least 1", path.display()));
+            return Err(input_error!(
+                "{}: size {width}x{height}: width and height must be at least 1",
+                path.display()
+            ));
         }
         if width > limit || height > limit {
-            return Err(input_error!("{}: size {width}x{height} is too large for this format (at most {limit} per side)", path.display()));
+            return Err(input_error!(
+                "{}: size {width}x{height} is too large for this format (at most {limit} per side)",
+                path.display()
+            ));
         }
         if let OutputFormat::Png { bits } = self {
             if !(1..=4).contains(&channels) {
-                return Err(input_error!("{}: PNG holds 1 to 4 channels, this model makes {channels}; write .exr or .npy", path.display()));
+                return Err(input_error!(
+                    "{}: PNG holds 1 to 4 channels, this model makes {channels}; write .exr or .npy",
+                    path.display()
+                ));
             }
             // The png crate buffers one row; keep a row's bytes addressable.
             let row = width.checked_mul(channels * (*bits as usize / 8));
             if row.is_none_or(|r| r > u32::MAX as usize) {
-                return Err(input_error!("{}: width {width} is too large for PNG rows", path.display()));
+                return Err(input_error!(
+                    "{}: width {width} is too large for PNG rows",
+                    path.display()
+                ));
             }
         }
-        if *self == OutputFormat::Exr && width.saturating_mul(height).saturating_mul(channels) > (1usize << 32) {
+        if *self == OutputFormat::Exr
+            && width.saturating_mul(height).saturating_mul(channels) > (1usize << 32)
+        {
             return Err(input_error!(
                 "{}: {width}x{height} is too large for .exr output, which is held in memory; write .png or .npy (streamed)",
                 path.display()
@@ -182,33 +251,61 @@ pub struct ImageWriter {
 }
 
 enum WriterKind {
-    Png { writer: png::StreamWriter<'static, BufWriter<File>>, bits: u8, file: AtomicFile },
-    Npy { writer: npyz::NpyWriter<f32, BufWriter<File>>, file: AtomicFile },
-    Exr { values: Vec<f32>, file: AtomicFile },
+    Png {
+        writer: Box<png::StreamWriter<'static, BufWriter<File>>>,
+        bits: u8,
+        file: AtomicFile,
+    },
+    Npy {
+        writer: npyz::NpyWriter<f32, BufWriter<File>>,
+        file: AtomicFile,
+    },
+    Exr {
+        values: Vec<f32>,
+        file: AtomicFile,
+    },
 }
 
 impl ImageWriter {
-    pub fn create(path: &Path, format: OutputFormat, width: usize, height: usize, channels: usize) -> Result<Self> {
+    pub fn create(
+        path: &Path,
+        format: OutputFormat,
+        width: usize,
+        height: usize,
+        channels: usize,
+    ) -> Result<Self> {
         format.check_size(path, width, height, channels)?;
         let mut file = AtomicFile::create(path)?;
-        let io_err = |e: std::io::Error| Error::Runtime(format!("{}: cannot write: {e}", path.display()));
+        let io_err =
+            |e: std::io::Error| Error::Runtime(format!("{}: cannot write: {e}", path.display()));
         let inner = match format {
             OutputFormat::Png { bits } => {
                 let handle = file.file().try_clone().map_err(io_err)?;
-                let mut encoder = png::Encoder::new(BufWriter::new(handle), width as u32, height as u32);
+                let mut encoder =
+                    png::Encoder::new(BufWriter::new(handle), width as u32, height as u32);
                 encoder.set_color(match channels {
                     1 => png::ColorType::Grayscale,
                     2 => png::ColorType::GrayscaleAlpha,
                     3 => png::ColorType::Rgb,
                     _ => png::ColorType::Rgba,
                 });
-                encoder.set_depth(if bits == 16 { png::BitDepth::Sixteen } else { png::BitDepth::Eight });
+                encoder.set_depth(if bits == 16 {
+                    png::BitDepth::Sixteen
+                } else {
+                    png::BitDepth::Eight
+                });
                 encoder.set_compression(png::Compression::Fast);
                 let writer = encoder
                     .write_header()
                     .and_then(|w| w.into_stream_writer())
-                    .map_err(|e| Error::Runtime(format!("{}: cannot write PNG: {e}", path.display())))?;
-                WriterKind::Png { writer, bits, file }
+                    .map_err(|e| {
+                        Error::Runtime(format!("{}: cannot write PNG: {e}", path.display()))
+                    })?;
+                WriterKind::Png {
+                    writer: Box::new(writer),
+                    bits,
+                    file,
+                }
             }
             OutputFormat::Npy => {
                 let handle = file.file().try_clone().map_err(io_err)?;
@@ -220,9 +317,19 @@ impl ImageWriter {
                     .map_err(io_err)?;
                 WriterKind::Npy { writer, file }
             }
-            OutputFormat::Exr => WriterKind::Exr { values: Vec::with_capacity(width * height * channels), file },
+            OutputFormat::Exr => WriterKind::Exr {
+                values: Vec::with_capacity(width * height * channels),
+                file,
+            },
         };
-        Ok(Self { inner, path: path.to_path_buf(), width, height, channels, rows_written: 0 })
+        Ok(Self {
+            inner,
+            path: path.to_path_buf(),
+            width,
+            height,
+            channels,
+            rows_written: 0,
+        })
     }
 
     /// Appends whole rows (`values.len()` a multiple of `width * channels`).
@@ -230,13 +337,20 @@ impl ImageWriter {
         let row = self.width * self.channels;
         assert_eq!(values.len() % row, 0, "write_rows takes whole rows");
         self.rows_written += values.len() / row;
-        assert!(self.rows_written <= self.height, "more rows than the image holds");
+        assert!(
+            self.rows_written <= self.height,
+            "more rows than the image holds"
+        );
         let path = &self.path;
-        let io_err = |e: std::io::Error| Error::Runtime(format!("{}: cannot write: {e}", path.display()));
+        let io_err =
+            |e: std::io::Error| Error::Runtime(format!("{}: cannot write: {e}", path.display()));
         match &mut self.inner {
             WriterKind::Png { writer, bits, .. } => {
                 let bytes = if *bits == 16 {
-                    values.iter().flat_map(|&v| to_unit_u16(v).to_be_bytes()).collect::<Vec<u8>>()
+                    values
+                        .iter()
+                        .flat_map(|&v| to_unit_u16(v).to_be_bytes())
+                        .collect::<Vec<u8>>()
                 } else {
                     values.iter().map(|&v| to_unit_u8(v)).collect::<Vec<u8>>()
                 };
@@ -257,14 +371,18 @@ impl ImageWriter {
 
     /// Finishes the file and moves it into place.
     pub fn finish(self) -> Result<()> {
-        assert_eq!(self.rows_written, self.height, "image finished before all rows were written");
+        assert_eq!(
+            self.rows_written, self.height,
+            "image finished before all rows were written"
+        );
         let path = self.path;
-        let io_err = |e: std::io::Error| Error::Runtime(format!("{}: cannot write: {e}", path.display()));
+        let io_err =
+            |e: std::io::Error| Error::Runtime(format!("{}: cannot write: {e}", path.display()));
         match self.inner {
             WriterKind::Png { writer, file, .. } => {
-                writer
-                    .finish()
-                    .map_err(|e| Error::Runtime(format!("{}: cannot write PNG: {e}", path.display())))?;
+                writer.finish().map_err(|e| {
+                    Error::Runtime(format!("{}: cannot write PNG: {e}", path.display()))
+                })?;
                 file.commit()
             }
             WriterKind::Npy { writer, file } => {
@@ -272,15 +390,22 @@ impl ImageWriter {
                 file.commit()
             }
             WriterKind::Exr { values, mut file } => {
-                write_exr(file.file(), self.width, self.height, self.channels, &values)
-                    .map_err(|e| Error::Runtime(format!("{}: cannot write EXR: {e}", path.display())))?;
+                write_exr(file.file(), self.width, self.height, self.channels, &values).map_err(
+                    |e| Error::Runtime(format!("{}: cannot write EXR: {e}", path.display())),
+                )?;
                 file.commit()
             }
         }
     }
 }
 
-fn write_exr(file: &mut File, width: usize, height: usize, channels: usize, values: &[f32]) -> exr::error::UnitResult {
+fn write_exr(
+    file: &mut File,
+    width: usize,
+    height: usize,
+    channels: usize,
+    values: &[f32],
+) -> exr::error::UnitResult {
     use exr::prelude::*;
     let names: Vec<String> = match channels {
         1 => vec!["Y".into()],
@@ -293,11 +418,21 @@ fn write_exr(file: &mut File, width: usize, height: usize, channels: usize, valu
         .iter()
         .enumerate()
         .map(|(c, name)| {
-            let samples: Vec<f32> = values.iter().skip(c).step_by(channels).map(|&v| (v + 1.0) * 0.5).collect();
+            let samples: Vec<f32> = values
+                .iter()
+                .skip(c)
+                .step_by(channels)
+                .map(|&v| (v + 1.0) * 0.5)
+                .collect();
             AnyChannel::new(name.as_str(), FlatSamples::F32(samples))
         })
         .collect();
-    let layer = Layer::new((width, height), LayerAttributes::named("ipfn"), Encoding::FAST_LOSSLESS, AnyChannels::sort(list));
+    let layer = Layer::new(
+        (width, height),
+        LayerAttributes::named("ipfn"),
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(list),
+    );
     let mut out = BufWriter::new(file);
     Image::from_layer(layer).write().to_buffered(&mut out)?;
     out.flush()?;

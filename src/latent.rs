@@ -45,7 +45,10 @@ impl LatentField {
     /// An infinite, non-repeating field drawn from `seed`.
     pub fn hashed(seed: u64, dims: usize, latent_dim: usize) -> Self {
         assert!((1..=3).contains(&dims), "latent field supports 1 to 3 axes");
-        assert!(latent_dim <= MAX_LATENT_DIM, "latent_dim above {MAX_LATENT_DIM}");
+        assert!(
+            latent_dim <= MAX_LATENT_DIM,
+            "latent_dim above {MAX_LATENT_DIM}"
+        );
         Self {
             dims,
             latent_dim,
@@ -68,9 +71,19 @@ impl LatentField {
     /// A field read from an explicit grid of shape `[latent_dim, n_0, .., n_{dims-1}]`, as the
     /// authors' code stores it (`latent_grid.npy`).
     pub fn from_grid(shape: &[usize], values: Vec<f32>) -> Self {
-        assert!(shape.len() >= 2 && shape.len() <= 4, "grid is [latent_dim, n_0, ...]");
-        assert_eq!(shape.iter().product::<usize>(), values.len(), "grid shape and data disagree");
-        assert!(shape[0] <= MAX_LATENT_DIM, "latent_dim above {MAX_LATENT_DIM}");
+        assert!(
+            shape.len() >= 2 && shape.len() <= 4,
+            "grid is [latent_dim, n_0, ...]"
+        );
+        assert_eq!(
+            shape.iter().product::<usize>(),
+            values.len(),
+            "grid shape and data disagree"
+        );
+        assert!(
+            shape[0] <= MAX_LATENT_DIM,
+            "latent_dim above {MAX_LATENT_DIM}"
+        );
         Self {
             dims: shape.len() - 1,
             latent_dim: shape[0],
@@ -114,7 +127,8 @@ impl LatentField {
                     key = mix64(key ^ (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
                 }
                 for (c, o) in out.iter_mut().enumerate() {
-                    let bits = mix64(key.wrapping_add((c as u64 + 1).wrapping_mul(0xd1b5_4a32_d192_ed03)));
+                    let bits =
+                        mix64(key.wrapping_add((c as u64 + 1).wrapping_mul(0xd1b5_4a32_d192_ed03)));
                     // 24 random bits -> uniform in [-1, 1).
                     *o = (bits >> 40) as f32 * (2.0 / 16_777_216.0) - 1.0;
                 }
@@ -143,22 +157,25 @@ impl LatentField {
         debug_assert_eq!(u.len(), dims);
         let mut base = [0i64; 3];
         let mut frac = [0f32; 3];
-        for d in 0..dims {
-            let f = u[d].floor();
+        for (d, &ud) in u.iter().enumerate() {
+            let f = ud.floor();
             base[d] = f as i64;
-            frac[d] = u[d] - f;
+            frac[d] = ud - f;
         }
         let corners = 1usize << dims;
         let mut weight = [0f32; 8];
         for (corner, w) in weight.iter_mut().enumerate().take(corners) {
             let mut dist2 = 0f32;
-            for d in 0..dims {
-                let t = if corner >> d & 1 == 1 { 1.0 - frac[d] } else { frac[d] };
+            for (d, &f) in frac[..dims].iter().enumerate() {
+                let t = if corner >> d & 1 == 1 { 1.0 - f } else { f };
                 dist2 += t * t;
             }
             *w = -dist2.sqrt() / self.sigma;
         }
-        let max = weight[..corners].iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+        let max = weight[..corners]
+            .iter()
+            .cloned()
+            .fold(f32::NEG_INFINITY, f32::max);
         let mut total = 0f32;
         for w in &mut weight[..corners] {
             *w = (*w - max).exp();
@@ -169,8 +186,8 @@ impl LatentField {
         let vector = &mut scratch[..self.latent_dim];
         let mut index = [0i64; 3];
         for (corner, &w) in weight[..corners].iter().enumerate() {
-            for d in 0..dims {
-                index[d] = base[d] + (corner >> d & 1) as i64;
+            for (d, (i, b)) in index.iter_mut().zip(&base).take(dims).enumerate() {
+                *i = b + (corner >> d & 1) as i64;
             }
             self.lattice_vector(&index[..dims], vector);
             let w = w / total;
@@ -201,9 +218,11 @@ pub fn mix64(mut z: u64) -> u64 {
 
 /// A seed derived from a parent seed and a stream of counters (for per-sample fields).
 pub fn derive_seed(parent: u64, counters: &[u64]) -> u64 {
-    counters.iter().fold(mix64(parent ^ 0x5851_f42d_4c95_7f2d), |k, &c| {
-        mix64(k ^ c.wrapping_mul(0x9e37_79b9_7f4a_7c15))
-    })
+    counters
+        .iter()
+        .fold(mix64(parent ^ 0x5851_f42d_4c95_7f2d), |k, &c| {
+            mix64(k ^ c.wrapping_mul(0x9e37_79b9_7f4a_7c15))
+        })
 }
 
 #[cfg(test)]

@@ -29,7 +29,15 @@ impl PixelGrid {
     /// Writes the `(row, col)` coordinates of `count` consecutive pixels of a `width`-wide region
     /// whose top-left pixel is `(y0, x0)`, starting at flat index `start` (row-major), into
     /// `out` (`[count, 2]`).
-    pub fn region_coordinates(&self, y0: i64, x0: i64, width: usize, start: usize, count: usize, out: &mut Vec<f32>) {
+    pub fn region_coordinates(
+        &self,
+        y0: i64,
+        x0: i64,
+        width: usize,
+        start: usize,
+        count: usize,
+        out: &mut Vec<f32>,
+    ) {
         out.clear();
         out.reserve(count * 2);
         for flat in start..start + count {

@@ -41,7 +41,9 @@ impl FromStr for DeviceChoice {
             "cpu" => Ok(Self::Cpu),
             "flex" => Ok(Self::Flex),
             "wgpu" | "gpu" => Ok(Self::Wgpu),
-            other => Err(input_error!("unknown device '{other}'; use cpu, flex or wgpu")),
+            other => Err(input_error!(
+                "unknown device '{other}'; use cpu, flex or wgpu"
+            )),
         }
     }
 }
@@ -60,7 +62,8 @@ impl DeviceChoice {
 
 /// The wgpu device, initialised once per process.
 pub fn wgpu_device() -> Result<Device> {
-    static DEVICE: std::sync::OnceLock<std::result::Result<Device, String>> = std::sync::OnceLock::new();
+    static DEVICE: std::sync::OnceLock<std::result::Result<Device, String>> =
+        std::sync::OnceLock::new();
     DEVICE
         .get_or_init(|| Device::wgpu_options().init().map_err(|e| e.to_string()))
         .clone()
@@ -72,7 +75,10 @@ pub fn wgpu_device() -> Result<Device> {
 /// The evaluator behind a [`Painter`].
 enum Engine {
     Fused(FusedGenerator),
-    Burn { generator: Generator, device: Device },
+    Burn {
+        generator: Generator,
+        device: Device,
+    },
 }
 
 /// Points per burn forward pass: bounds device memory (`width` activations per point).
@@ -171,14 +177,21 @@ impl Synth {
     /// Validates the options and prepares the evaluator.
     pub fn painter(self) -> Result<Painter> {
         if self.config.dims != 2 {
-            return Err(input_error!("this model has {} coordinate axes; image synthesis needs a 2D model", self.config.dims));
+            return Err(input_error!(
+                "this model has {} coordinate axes; image synthesis needs a 2D model",
+                self.config.dims
+            ));
         }
         if !(self.zoom.is_finite() && self.zoom > 0.0) {
-            return Err(input_error!("--zoom {}: must be a positive number", self.zoom));
+            return Err(input_error!(
+                "--zoom {}: must be a positive number",
+                self.zoom
+            ));
         }
         let grid = PixelGrid::new(self.config.crop, self.zoom);
         let mut weights = self.weights;
-        let mut field = LatentField::hashed(self.seed, 2, self.config.latent_dim).with_sigma(self.config.sigma);
+        let mut field =
+            LatentField::hashed(self.seed, 2, self.config.latent_dim).with_sigma(self.config.sigma);
         let mut latent_scale = vec![self.config.latent_scale; 2];
         let mut tile = None;
         if let Some(period) = self.tile {
@@ -257,30 +270,56 @@ impl Painter {
         let mut out = vec![0f32; total * c];
         match &self.engine {
             Engine::Fused(generator) => {
-                out.par_chunks_mut(CHUNK_POINTS * c).enumerate().for_each_init(
-                    || (Scratch::default(), Vec::new()),
-                    |(scratch, coords), (chunk, values)| {
-                        let start = chunk * CHUNK_POINTS;
-                        let count = values.len() / c;
-                        self.grid.region_coordinates(y0, x0, width, start, count, coords);
-                        generator.eval(coords, &self.field, &self.latent_scale, values, scratch);
-                    },
-                );
+                out.par_chunks_mut(CHUNK_POINTS * c)
+                    .enumerate()
+                    .for_each_init(
+                        || (Scratch::default(), Vec::new()),
+                        |(scratch, coords), (chunk, values)| {
+                            let start = chunk * CHUNK_POINTS;
+                            let count = values.len() / c;
+                            self.grid
+                                .region_coordinates(y0, x0, width, start, count, coords);
+                            generator.eval(
+                                coords,
+                                &self.field,
+                                &self.latent_scale,
+                                values,
+                                scratch,
+                            );
+                        },
+                    );
             }
             Engine::Burn { generator, device } => {
                 let ld = self.field.latent_dim();
                 let (mut coords, mut u, mut latent) = (Vec::new(), Vec::new(), Vec::new());
                 for (chunk, values) in out.chunks_mut(BURN_CHUNK_POINTS * c).enumerate() {
                     let count = values.len() / c;
-                    self.grid.region_coordinates(y0, x0, width, chunk * BURN_CHUNK_POINTS, count, &mut coords);
+                    self.grid.region_coordinates(
+                        y0,
+                        x0,
+                        width,
+                        chunk * BURN_CHUNK_POINTS,
+                        count,
+                        &mut coords,
+                    );
                     u.clear();
-                    u.extend(coords.chunks_exact(2).flat_map(|p| [p[0] * self.latent_scale[0], p[1] * self.latent_scale[1]]));
+                    u.extend(
+                        coords.chunks_exact(2).flat_map(|p| {
+                            [p[0] * self.latent_scale[0], p[1] * self.latent_scale[1]]
+                        }),
+                    );
                     latent.resize(count * ld, 0.0);
                     self.field.fill(&u, &mut latent);
-                    let p = Tensor::<2>::from_data(TensorData::new(coords.clone(), [count, 2]), device);
-                    let z = Tensor::<2>::from_data(TensorData::new(latent.clone(), [count, ld]), device);
+                    let p =
+                        Tensor::<2>::from_data(TensorData::new(coords.clone(), [count, 2]), device);
+                    let z = Tensor::<2>::from_data(
+                        TensorData::new(latent.clone(), [count, ld]),
+                        device,
+                    );
                     let y = generator.forward(p, z); // [count, channels]
-                    let host = y.try_into_vec_as::<f32>().expect("generator output is readable as f32");
+                    let host = y
+                        .try_into_vec_as::<f32>()
+                        .expect("generator output is readable as f32");
                     values.copy_from_slice(&host);
                 }
             }

@@ -21,10 +21,22 @@ fn ipfn(dir: &Path, args: &[&str]) -> Output {
 /// Asserts a failure with exit code 2 and a single stderr line containing every `needle`.
 fn assert_error(out: &Output, needles: &[&str]) {
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "expected exit code 2, got {:?}; stderr: {stderr}", out.status.code());
-    assert_eq!(stderr.trim_end().lines().count(), 1, "expected one line, got: {stderr}");
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "expected exit code 2, got {:?}; stderr: {stderr}",
+        out.status.code()
+    );
+    assert_eq!(
+        stderr.trim_end().lines().count(),
+        1,
+        "expected one line, got: {stderr}"
+    );
     for needle in needles {
-        assert!(stderr.contains(needle), "error should mention '{needle}': {stderr}");
+        assert!(
+            stderr.contains(needle),
+            "error should mention '{needle}': {stderr}"
+        );
     }
 }
 
@@ -46,66 +58,145 @@ fn synth_on_a_fresh_folder_uses_the_shipped_model_and_writes_a_png() {
     let dir = tempfile::tempdir().unwrap();
     let out = ipfn(dir.path(), &["synth", "--size", "64", "--seed", "3"]);
     assert!(out.status.success(), "{}", stderr(&out));
-    assert!(stderr(&out).contains("shipped honeycomb"), "should say which model: {}", stderr(&out));
+    assert!(
+        stderr(&out).contains("shipped honeycomb"),
+        "should say which model: {}",
+        stderr(&out)
+    );
     let (info, pixels) = decode_png(&dir.path().join("synth.png"));
-    assert_eq!((info.width, info.height, info.color_type, info.bit_depth), (64, 64, png::ColorType::Rgb, png::BitDepth::Eight));
+    assert_eq!(
+        (info.width, info.height, info.color_type, info.bit_depth),
+        (64, 64, png::ColorType::Rgb, png::BitDepth::Eight)
+    );
     let mean = pixels.iter().map(|&v| v as f64).sum::<f64>() / pixels.len() as f64;
-    let var = pixels.iter().map(|&v| (v as f64 - mean).powi(2)).sum::<f64>() / pixels.len() as f64;
-    assert!(var.sqrt() > 20.0, "a honeycomb has contrast; std {}", var.sqrt());
+    let var = pixels
+        .iter()
+        .map(|&v| (v as f64 - mean).powi(2))
+        .sum::<f64>()
+        / pixels.len() as f64;
+    assert!(
+        var.sqrt() > 20.0,
+        "a honeycomb has contrast; std {}",
+        var.sqrt()
+    );
 }
 
 #[test]
 fn import_then_synth_uses_the_imported_model_in_every_format() {
     let dir = tempfile::tempdir().unwrap();
     let pth = data("official-honeycomb/netG.pth");
-    let out = ipfn(dir.path(), &["import", pth.to_str().unwrap(), "-o", "honey.ipfn"]);
+    let out = ipfn(
+        dir.path(),
+        &["import", pth.to_str().unwrap(), "-o", "honey.ipfn"],
+    );
     assert!(out.status.success(), "{}", stderr(&out));
 
     // The imported weights are the shipped model's.
-    let imported = GeneratorWeights::read_from(&Checkpoint::load(&dir.path().join("honey.ipfn")).unwrap()).unwrap();
+    let imported =
+        GeneratorWeights::read_from(&Checkpoint::load(&dir.path().join("honey.ipfn")).unwrap())
+            .unwrap();
     let shipped_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("exemplars/honeycomb.ipfn");
     let shipped = GeneratorWeights::read_from(&Checkpoint::load(&shipped_path).unwrap()).unwrap();
     assert_eq!(imported, shipped);
 
-    let out = ipfn(dir.path(), &["synth", "--width", "40", "--height", "24", "--out", "a.npy", "--seed", "7"]);
+    let out = ipfn(
+        dir.path(),
+        &[
+            "synth", "--width", "40", "--height", "24", "--out", "a.npy", "--seed", "7",
+        ],
+    );
     assert!(out.status.success(), "{}", stderr(&out));
-    assert!(stderr(&out).contains("honey.ipfn"), "should use the model just imported: {}", stderr(&out));
+    assert!(
+        stderr(&out).contains("honey.ipfn"),
+        "should use the model just imported: {}",
+        stderr(&out)
+    );
     let (shape, raw) = read_npy(&dir.path().join("a.npy")).unwrap();
     assert_eq!(shape, [24, 40, 3]);
     assert!(raw.iter().all(|v| (-1.0..=1.0).contains(v)));
 
-    let out = ipfn(dir.path(), &["synth", "--width", "40", "--height", "24", "--out", "a16.png", "--bits", "16", "--seed", "7"]);
+    let out = ipfn(
+        dir.path(),
+        &[
+            "synth", "--width", "40", "--height", "24", "--out", "a16.png", "--bits", "16",
+            "--seed", "7",
+        ],
+    );
     assert!(out.status.success(), "{}", stderr(&out));
     let (info, bytes) = decode_png(&dir.path().join("a16.png"));
-    assert_eq!((info.width, info.height, info.bit_depth), (40, 24, png::BitDepth::Sixteen));
+    assert_eq!(
+        (info.width, info.height, info.bit_depth),
+        (40, 24, png::BitDepth::Sixteen)
+    );
     let first = u16::from_be_bytes([bytes[0], bytes[1]]);
-    assert_eq!(first, ipfn::io::to_unit_u16(raw[0]), "16-bit PNG holds the same pixels as the npy");
+    assert_eq!(
+        first,
+        ipfn::io::to_unit_u16(raw[0]),
+        "16-bit PNG holds the same pixels as the npy"
+    );
 
-    let out = ipfn(dir.path(), &["synth", "--width", "40", "--height", "24", "--out", "a.exr", "--seed", "7"]);
+    let out = ipfn(
+        dir.path(),
+        &[
+            "synth", "--width", "40", "--height", "24", "--out", "a.exr", "--seed", "7",
+        ],
+    );
     assert!(out.status.success(), "{}", stderr(&out));
     let exr = exr::prelude::read_first_flat_layer_from_file(dir.path().join("a.exr")).unwrap();
     assert_eq!(exr.layer_data.size, exr::math::Vec2(40, 24));
-    let red = exr.layer_data.channel_data.list.iter().find(|c| c.name.to_string() == "R").unwrap();
+    let red = exr
+        .layer_data
+        .channel_data
+        .list
+        .iter()
+        .find(|c| c.name.to_string() == "R")
+        .unwrap();
     let r0 = red.sample_data.value_by_flat_index(0).to_f32();
-    assert!((r0 - (raw[0] + 1.0) / 2.0).abs() < 1e-6, "EXR holds (v + 1) / 2");
+    assert!(
+        (r0 - (raw[0] + 1.0) / 2.0).abs() < 1e-6,
+        "EXR holds (v + 1) / 2"
+    );
 }
 
 #[test]
 fn offset_paints_the_neighbouring_piece() {
     let dir = tempfile::tempdir().unwrap();
     let run = |args: &[&str]| assert!(ipfn(dir.path(), args).status.success());
-    run(&["synth", "--width", "20", "--height", "8", "--out", "whole.npy"]);
-    run(&["synth", "--width", "10", "--height", "8", "--offset", "10,0", "--out", "right.npy"]);
+    run(&[
+        "synth",
+        "--width",
+        "20",
+        "--height",
+        "8",
+        "--out",
+        "whole.npy",
+    ]);
+    run(&[
+        "synth",
+        "--width",
+        "10",
+        "--height",
+        "8",
+        "--offset",
+        "10,0",
+        "--out",
+        "right.npy",
+    ]);
     let (_, whole) = read_npy(&dir.path().join("whole.npy")).unwrap();
     let (_, right) = read_npy(&dir.path().join("right.npy")).unwrap();
-    let window: Vec<f32> = (0..8).flat_map(|r| whole[(r * 20 + 10) * 3..(r * 20 + 20) * 3].to_vec()).collect();
+    let window: Vec<f32> = (0..8)
+        .flat_map(|r| whole[(r * 20 + 10) * 3..(r * 20 + 20) * 3].to_vec())
+        .collect();
     assert_eq!(window, right);
 }
 
 #[test]
 fn tile_reports_how_far_k_moved() {
     let dir = tempfile::tempdir().unwrap();
-    let out = ipfn(dir.path(), &["synth", "--size", "100", "--tile", "--out", "t.png"]);
+    let out = ipfn(
+        dir.path(),
+        &["synth", "--size", "100", "--tile", "--out", "t.png"],
+    );
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(stderr(&out).contains("K snapped"), "{}", stderr(&out));
 }
@@ -115,18 +206,46 @@ fn bad_input_gets_one_line_and_exit_code_2() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     assert_error(&ipfn(d, &["synth", "--size", "0"]), &["size", "at least 1"]);
-    assert_error(&ipfn(d, &["synth", "--model", "nope.ipfn"]), &["nope.ipfn", "no such model"]);
-    assert_error(&ipfn(d, &["synth", "--out", "x.bmp"]), &["x.bmp", "unknown extension"]);
-    assert_error(&ipfn(d, &["synth", "--out", "no/such/dir/x.png"]), &["x.png", "does not exist"]);
-    assert_error(&ipfn(d, &["synth", "--device", "tpu"]), &["unknown device", "tpu"]);
+    assert_error(
+        &ipfn(d, &["synth", "--model", "nope.ipfn"]),
+        &["nope.ipfn", "no such model"],
+    );
+    assert_error(
+        &ipfn(d, &["synth", "--out", "x.bmp"]),
+        &["x.bmp", "unknown extension"],
+    );
+    assert_error(
+        &ipfn(d, &["synth", "--out", "no/such/dir/x.png"]),
+        &["x.png", "does not exist"],
+    );
+    assert_error(
+        &ipfn(d, &["synth", "--device", "tpu"]),
+        &["unknown device", "tpu"],
+    );
     assert_error(&ipfn(d, &["synth", "--size", "3000000000"]), &["too large"]);
     assert_error(&ipfn(d, &["synth", "--zoom", "0"]), &["--zoom"]);
-    std::fs::write(d.join("junk.ipfn"), b"\x10\x00\x00\x00\x00\x00\x00\x00{\"a\": trunc").unwrap();
-    assert_error(&ipfn(d, &["synth", "--model", "junk.ipfn"]), &["junk.ipfn", "corrupt"]);
+    std::fs::write(
+        d.join("junk.ipfn"),
+        b"\x10\x00\x00\x00\x00\x00\x00\x00{\"a\": trunc",
+    )
+    .unwrap();
+    assert_error(
+        &ipfn(d, &["synth", "--model", "junk.ipfn"]),
+        &["junk.ipfn", "corrupt"],
+    );
     std::fs::write(d.join("photo.png"), b"not a model").unwrap();
-    assert_error(&ipfn(d, &["synth", "--model", "photo.png"]), &["photo.png", "not an ipfn model"]);
-    assert_error(&ipfn(d, &["import", "missing.pth", "-o", "m.ipfn"]), &["missing.pth"]);
-    assert_error(&ipfn(d, &["import", "photo.png", "-o", "m.ipfn"]), &["photo.png", "PyTorch"]);
+    assert_error(
+        &ipfn(d, &["synth", "--model", "photo.png"]),
+        &["photo.png", "not an ipfn model"],
+    );
+    assert_error(
+        &ipfn(d, &["import", "missing.pth", "-o", "m.ipfn"]),
+        &["missing.pth"],
+    );
+    assert_error(
+        &ipfn(d, &["import", "photo.png", "-o", "m.ipfn"]),
+        &["photo.png", "PyTorch"],
+    );
 
     // A checkpoint whose tensors do not fit its config: another model shape.
     let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("exemplars/honeycomb.ipfn");
@@ -134,10 +253,17 @@ fn bad_input_gets_one_line_and_exit_code_2() {
     let config = ckpt.metadata["generator_config"].replace("\"width\":128", "\"width\":64");
     ckpt.metadata.insert("generator_config".into(), config);
     ckpt.save(&d.join("other.ipfn")).unwrap();
-    assert_error(&ipfn(d, &["synth", "--model", "other.ipfn"]), &["other.ipfn", "another model shape"]);
+    assert_error(
+        &ipfn(d, &["synth", "--model", "other.ipfn"]),
+        &["other.ipfn", "another model shape"],
+    );
 
     // Nothing half-written was left behind by any of the failures.
-    let mut names: Vec<String> = std::fs::read_dir(d).unwrap().flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
+    let mut names: Vec<String> = std::fs::read_dir(d)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
     names.sort();
     assert_eq!(names, ["junk.ipfn", "other.ipfn", "photo.png"]);
 }

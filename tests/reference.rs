@@ -34,15 +34,29 @@ fn reference_field() -> LatentField {
 /// NCHW `[1, c, 256, 256]` to points-major `[n, c]`.
 fn to_points_major(nchw: &[f32], c: usize) -> Vec<f32> {
     let n = nchw.len() / c;
-    (0..n).flat_map(|i| (0..c).map(move |ch| nchw[ch * n + i])).collect()
+    (0..n)
+        .flat_map(|i| (0..c).map(move |ch| nchw[ch * n + i]))
+        .collect()
 }
 
 #[test]
 fn imported_checkpoint_has_the_documented_shape() {
     let (config, weights) = honeycomb();
-    assert_eq!((config.dims, config.channels, config.octaves, config.latent_dim), (2, 3, 5, 5));
+    assert_eq!(
+        (
+            config.dims,
+            config.channels,
+            config.octaves,
+            config.latent_dim
+        ),
+        (2, 3, 5, 5)
+    );
     assert_eq!((config.hidden_layers, config.width), (10, 128));
-    assert!((weights.k[0] - 0.8116).abs() < 1e-4 && (weights.k[1] - 0.9211).abs() < 1e-4, "K = {:?}", weights.k);
+    assert!(
+        (weights.k[0] - 0.8116).abs() < 1e-4 && (weights.k[1] - 0.9211).abs() < 1e-4,
+        "K = {:?}",
+        weights.k
+    );
 }
 
 #[test]
@@ -66,7 +80,13 @@ fn output_matches_reference(device: DeviceChoice) {
         None => {
             let generator = FusedGenerator::new(weights);
             let mut out = vec![0f32; n * 3];
-            generator.eval(&points, &field, &[0.5, 0.5], &mut out, &mut Scratch::default());
+            generator.eval(
+                &points,
+                &field,
+                &[0.5, 0.5],
+                &mut out,
+                &mut Scratch::default(),
+            );
             out
         }
         Some(device) => {
@@ -82,7 +102,15 @@ fn output_matches_reference(device: DeviceChoice) {
     let (_, expected) = read_npy(&data("official-honeycomb/output.npy")).unwrap();
     let diff = max_abs_diff(&ours, &to_points_major(&expected, 3));
     eprintln!("{device:?}: max abs difference to the authors' output: {diff:.2e}");
-    assert!(diff < TOLERANCE, "{device:?}: output max abs difference {diff}");
+    assert!(
+        diff < TOLERANCE,
+        "{device:?}: output max abs difference {diff}"
+    );
 }
 
-test_device!(output_matches_reference, output_matches_reference_cpu, output_matches_reference_flex, output_matches_reference_wgpu);
+test_device!(
+    output_matches_reference,
+    output_matches_reference_cpu,
+    output_matches_reference_flex,
+    output_matches_reference_wgpu
+);

@@ -8,12 +8,26 @@ use ipfn::synth::{DeviceChoice, Painter, Synth};
 
 fn painter(seed: u64, device: DeviceChoice) -> Painter {
     let (config, weights) = honeycomb();
-    Synth::new(config, weights).seed(seed).device(device).painter().unwrap()
+    Synth::new(config, weights)
+        .seed(seed)
+        .device(device)
+        .painter()
+        .unwrap()
 }
 
 /// Copies the `w x h` window at `(x, y)` out of a `[height, width, c]` image.
-fn window(image: &[f32], width: usize, c: usize, x: usize, y: usize, w: usize, h: usize) -> Vec<f32> {
-    (y..y + h).flat_map(|r| image[(r * width + x) * c..(r * width + x + w) * c].to_vec()).collect()
+fn window(
+    image: &[f32],
+    width: usize,
+    c: usize,
+    x: usize,
+    y: usize,
+    w: usize,
+    h: usize,
+) -> Vec<f32> {
+    (y..y + h)
+        .flat_map(|r| image[(r * width + x) * c..(r * width + x + w) * c].to_vec())
+        .collect()
 }
 
 #[test]
@@ -35,7 +49,10 @@ fn same_seed_same_pixels_other_seed_other_pixels() {
     let b = painter(1, DeviceChoice::Cpu).render(0, 0, 32, 32);
     let c = painter(2, DeviceChoice::Cpu).render(0, 0, 32, 32);
     assert_eq!(a, b);
-    assert!(max_abs_diff(&a, &c) > 0.1, "different seeds should paint different samples");
+    assert!(
+        max_abs_diff(&a, &c) > 0.1,
+        "different seeds should paint different samples"
+    );
 }
 
 #[test]
@@ -53,17 +70,39 @@ fn field_is_infinite_far_from_the_origin() {
 fn tile_is_exactly_periodic() {
     let (config, weights) = honeycomb();
     let (w, h) = (150usize, 90usize);
-    let tiled = Synth::new(config.clone(), weights.clone()).seed(4).tile(w, h).painter().unwrap();
+    let tiled = Synth::new(config.clone(), weights.clone())
+        .seed(4)
+        .tile(w, h)
+        .painter()
+        .unwrap();
     let adj = tiled.tile_adjustment().unwrap();
-    assert!(adj.k_used.iter().zip(&adj.k_trained).any(|(a, b)| a != b), "this size should need snapping");
+    assert!(
+        adj.k_used.iter().zip(&adj.k_trained).any(|(a, b)| a != b),
+        "this size should need snapping"
+    );
     let big = tiled.render(0, 0, 2 * w, 2 * h);
     let col = |x: usize| window(&big, 2 * w, 3, x, 0, 1, 2 * h);
     let row = |y: usize| window(&big, 2 * w, 3, 0, y, 2 * w, 1);
-    assert!(max_abs_diff(&col(w), &col(0)) < 1e-4, "column W differs from column 0");
-    assert!(max_abs_diff(&row(h), &row(0)) < 1e-4, "row H differs from row 0");
+    assert!(
+        max_abs_diff(&col(w), &col(0)) < 1e-4,
+        "column W differs from column 0"
+    );
+    assert!(
+        max_abs_diff(&row(h), &row(0)) < 1e-4,
+        "row H differs from row 0"
+    );
     // Without --tile the same columns differ: the test above would catch broken tiling.
-    let plain = Synth::new(config, weights).seed(4).painter().unwrap().render(0, 0, 2 * w, 2 * h);
-    assert!(max_abs_diff(&window(&plain, 2 * w, 3, w, 0, 1, 2 * h), &window(&plain, 2 * w, 3, 0, 0, 1, 2 * h)) > 0.05);
+    let plain = Synth::new(config, weights)
+        .seed(4)
+        .painter()
+        .unwrap()
+        .render(0, 0, 2 * w, 2 * h);
+    assert!(
+        max_abs_diff(
+            &window(&plain, 2 * w, 3, w, 0, 1, 2 * h),
+            &window(&plain, 2 * w, 3, 0, 0, 1, 2 * h)
+        ) > 0.05
+    );
 }
 
 #[test]
@@ -72,12 +111,21 @@ fn streamed_file_equals_in_memory_render() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("out.npy");
     // 7-pixel bands over 45 rows: several bands and a short last one.
-    p.write_image(&path, OutputFormat::Npy, 33, 45, 33 * 7, |_| {}).unwrap();
+    p.write_image(&path, OutputFormat::Npy, 33, 45, 33 * 7, |_| {})
+        .unwrap();
     let (shape, values) = read_npy(&path).unwrap();
     assert_eq!(shape, [45, 33, 3]);
     assert_eq!(values, p.render(0, 0, 33, 45));
-    let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().flatten().map(|e| e.file_name()).collect();
-    assert_eq!(leftovers.len(), 1, "temporary files left behind: {leftovers:?}");
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(
+        leftovers.len(),
+        1,
+        "temporary files left behind: {leftovers:?}"
+    );
 }
 
 /// The fused CPU evaluator, burn-flex and burn-wgpu paint the same pixels.
@@ -86,7 +134,15 @@ fn agrees_with_fused_cpu(device: DeviceChoice) {
     let ours = painter(11, device).render(-20, 7, 70, 50);
     let diff = max_abs_diff(&reference, &ours);
     eprintln!("{device:?} vs fused CPU: max abs difference {diff:.2e}");
-    assert!(diff < 1e-4, "{device:?} differs from the fused CPU path by {diff}");
+    assert!(
+        diff < 1e-4,
+        "{device:?} differs from the fused CPU path by {diff}"
+    );
 }
 
-test_device!(agrees_with_fused_cpu, agrees_cpu_cpu, agrees_flex_cpu, agrees_wgpu_cpu);
+test_device!(
+    agrees_with_fused_cpu,
+    agrees_cpu_cpu,
+    agrees_flex_cpu,
+    agrees_wgpu_cpu
+);

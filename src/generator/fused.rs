@@ -42,14 +42,26 @@ impl FusedGenerator {
     /// # Shapes
     /// - `p`: `[n, dims]` coordinates (row-major)
     /// - `out`: `[n, channels]`, written with tanh outputs in [-1, 1]
-    pub fn eval(&self, p: &[f32], field: &LatentField, latent_scale: &[f32], out: &mut [f32], scratch: &mut Scratch) {
+    pub fn eval(
+        &self,
+        p: &[f32],
+        field: &LatentField,
+        latent_scale: &[f32],
+        out: &mut [f32],
+        scratch: &mut Scratch,
+    ) {
         let w = &self.weights;
         let dims = w.k.len();
         let n = p.len() / dims;
         let enc = w.octaves * 2 * dims;
         let input = enc + field.latent_dim();
         debug_assert_eq!(w.layers[0].inputs, input);
-        let widest = w.layers.iter().map(|l| l.outputs.max(l.inputs)).max().unwrap_or(0);
+        let widest = w
+            .layers
+            .iter()
+            .map(|l| l.outputs.max(l.inputs))
+            .max()
+            .unwrap_or(0);
         scratch.a.resize(n * widest, 0.0);
         scratch.b.resize(n * widest, 0.0);
         scratch.u.resize(n * dims, 0.0);
@@ -65,7 +77,10 @@ impl FusedGenerator {
         {
             let ld = field.latent_dim();
             for i in 0..n {
-                let (u, row) = (&scratch.u[i * dims..(i + 1) * dims], &mut scratch.a[i * input + enc..(i + 1) * input]);
+                let (u, row) = (
+                    &scratch.u[i * dims..(i + 1) * dims],
+                    &mut scratch.a[i * input + enc..(i + 1) * input],
+                );
                 field.at(u, &mut row[..ld]);
             }
         }

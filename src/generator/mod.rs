@@ -89,7 +89,11 @@ impl GeneratorConfig {
             return bad(&format!("octaves = {}, expected 1 to 20", self.octaves));
         }
         if self.latent_dim > crate::latent::MAX_LATENT_DIM {
-            return bad(&format!("latent_dim = {}, at most {}", self.latent_dim, crate::latent::MAX_LATENT_DIM));
+            return bad(&format!(
+                "latent_dim = {}, at most {}",
+                self.latent_dim,
+                crate::latent::MAX_LATENT_DIM
+            ));
         }
         if self.width == 0 || self.hidden_layers == 0 {
             return bad("width and hidden_layers must be at least 1");
@@ -150,9 +154,16 @@ impl Generator {
 
     /// Host copy of the weights.
     pub fn weights(&self) -> GeneratorWeights {
-        let read = |t: Tensor<2>| t.try_into_vec_as::<f32>().expect("generator weights are readable as f32");
+        let read = |t: Tensor<2>| {
+            t.try_into_vec_as::<f32>()
+                .expect("generator weights are readable as f32")
+        };
         GeneratorWeights {
-            k: self.k.val().try_into_vec_as::<f32>().expect("K is readable as f32"),
+            k: self
+                .k
+                .val()
+                .try_into_vec_as::<f32>()
+                .expect("K is readable as f32"),
             octaves: self.octaves,
             layers: self
                 .layers
@@ -166,7 +177,11 @@ impl Generator {
                         bias: l
                             .bias
                             .as_ref()
-                            .map(|b| b.val().try_into_vec_as::<f32>().expect("bias is readable as f32"))
+                            .map(|b| {
+                                b.val()
+                                    .try_into_vec_as::<f32>()
+                                    .expect("bias is readable as f32")
+                            })
                             .unwrap_or_else(|| vec![0.0; outputs]),
                     }
                 })
@@ -176,8 +191,11 @@ impl Generator {
 
     /// A generator on `device` holding `weights`.
     pub fn from_weights(weights: &GeneratorWeights, device: &Device) -> Self {
-        let tensor2 = |v: &[f32], shape: [usize; 2]| Tensor::<2>::from_data(TensorData::new(v.to_vec(), shape), device);
-        let tensor1 = |v: &[f32]| Tensor::<1>::from_data(TensorData::new(v.to_vec(), [v.len()]), device);
+        let tensor2 = |v: &[f32], shape: [usize; 2]| {
+            Tensor::<2>::from_data(TensorData::new(v.to_vec(), shape), device)
+        };
+        let tensor1 =
+            |v: &[f32]| Tensor::<1>::from_data(TensorData::new(v.to_vec(), [v.len()]), device);
         let layers = weights
             .layers
             .iter()
@@ -226,13 +244,22 @@ impl GeneratorWeights {
 
     /// Stores config and weights under the `generator.*` names.
     pub fn write_to(&self, config: &GeneratorConfig, checkpoint: &mut Checkpoint) {
-        checkpoint
-            .metadata
-            .insert(CONFIG_KEY.into(), serde_json::to_string(config).expect("config serialises"));
+        checkpoint.metadata.insert(
+            CONFIG_KEY.into(),
+            serde_json::to_string(config).expect("config serialises"),
+        );
         checkpoint.insert("generator.k", vec![self.k.len()], self.k.clone());
         for (i, l) in self.layers.iter().enumerate() {
-            checkpoint.insert(format!("generator.layers.{i}.weight"), vec![l.inputs, l.outputs], l.weight.clone());
-            checkpoint.insert(format!("generator.layers.{i}.bias"), vec![l.outputs], l.bias.clone());
+            checkpoint.insert(
+                format!("generator.layers.{i}.weight"),
+                vec![l.inputs, l.outputs],
+                l.weight.clone(),
+            );
+            checkpoint.insert(
+                format!("generator.layers.{i}.bias"),
+                vec![l.outputs],
+                l.bias.clone(),
+            );
         }
     }
 
@@ -248,8 +275,12 @@ impl GeneratorWeights {
             layers.push(LayerWeights {
                 inputs,
                 outputs,
-                weight: checkpoint.tensor(&format!("generator.layers.{i}.weight"), &[inputs, outputs])?.to_vec(),
-                bias: checkpoint.tensor(&format!("generator.layers.{i}.bias"), &[outputs])?.to_vec(),
+                weight: checkpoint
+                    .tensor(&format!("generator.layers.{i}.weight"), &[inputs, outputs])?
+                    .to_vec(),
+                bias: checkpoint
+                    .tensor(&format!("generator.layers.{i}.bias"), &[outputs])?
+                    .to_vec(),
             });
         }
         let extra = format!("generator.layers.{}.weight", config.hidden_layers + 1);
@@ -258,6 +289,13 @@ impl GeneratorWeights {
                 "{path}: has more layers than its config says: the checkpoint is for another model shape"
             ));
         }
-        Ok((config.clone(), GeneratorWeights { k, octaves: config.octaves, layers }))
+        Ok((
+            config.clone(),
+            GeneratorWeights {
+                k,
+                octaves: config.octaves,
+                layers,
+            },
+        ))
     }
 }

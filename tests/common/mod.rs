@@ -40,17 +40,26 @@ pub fn skip_wgpu() -> bool {
 }
 
 pub fn data(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name)
 }
 
 pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
     assert_eq!(a.len(), b.len(), "compared arrays differ in length");
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
 }
 
 /// The honeycomb generator converted from the authors' `netG.pth`.
-pub fn honeycomb() -> (ipfn::generator::GeneratorConfig, ipfn::generator::GeneratorWeights) {
-    ipfn::checkpoint::import_pytorch(&data("official-honeycomb/netG.pth"), 5, 128).expect("netG.pth imports")
+pub fn honeycomb() -> (
+    ipfn::generator::GeneratorConfig,
+    ipfn::generator::GeneratorWeights,
+) {
+    ipfn::checkpoint::import_pytorch(&data("official-honeycomb/netG.pth"), 5, 128)
+        .expect("netG.pth imports")
 }
 
 pub fn all_devices() -> [DeviceChoice; 3] {
