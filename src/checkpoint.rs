@@ -343,3 +343,104 @@ mod tests {
         assert!(garbage.unwrap_err().to_string().contains("x.ipfn"));
     }
 }
+
+/// Stores every float parameter of `module` as `{prefix}.{path}` (e.g. `critic.convs.0.weight`).
+pub fn write_module<M: burn::module::Module>(
+    module: &M,
+    prefix: &str,
+    checkpoint: &mut Checkpoint,
+) {
+    struct Collect<'a> {
+        path: Vec<String>,
+        prefix: &'a str,
+        out: &'a mut Checkpoint,
+    }
+    impl burn::module::ModuleVisitor for Collect<'_> {
+        fn enter_module(&mut self, name: &str, _: &str) {
+            self.path.push(name.to_string());
+        }
+        fn exit_module(&mut self, _: &str, _: &str) {
+            self.path.pop();
+        }
+        fn visit_float<const D: usize>(
+            &mut self,
+            param: &burn::module::Param<burn::tensor::Tensor<D>>,
+        ) {
+            let tensor = param.val();
+            let shape = tensor.dims().to_vec();
+            let values = tensor
+                .try_into_vec_as::<f32>()
+                .expect("parameters are readable as f32");
+            let name = format!("{}.{}", self.prefix, self.path.join("."));
+            assert!(
+                !self.out.tensors.contains_key(&name),
+                "duplicate parameter path {name}"
+            );
+            self.out.insert(name, shape, values);
+        }
+    }
+    module.visit(&mut Collect {
+        path: Vec::new(),
+        prefix,
+        out: checkpoint,
+    });
+}
+
+/// Replaces every float parameter of `module` by `{prefix}.{path}` from `checkpoint`, keeping
+/// parameter identities and whether they require gradients.
+pub fn read_module<M: burn::module::Module>(
+    module: M,
+    prefix: &str,
+    checkpoint: &Checkpoint,
+) -> Result<M> {
+    use burn::module::Param;
+    use burn::tensor::{Tensor, TensorData};
+    struct Load<'a> {
+        path: Vec<String>,
+        prefix: &'a str,
+        checkpoint: &'a Checkpoint,
+        error: Option<crate::Error>,
+    }
+    impl burn::module::ModuleMapper for Load<'_> {
+        fn enter_module(&mut self, name: &str, _: &str) {
+            self.path.push(name.to_string());
+        }
+        fn exit_module(&mut self, _: &str, _: &str) {
+            self.path.pop();
+        }
+        fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
+            let (id, tensor, mapper) = param.consume();
+            let name = format!("{}.{}", self.prefix, self.path.join("."));
+            let shape = tensor.dims();
+            let tensor = match self.checkpoint.tensor(&name, &shape) {
+                Ok(values) => {
+                    let loaded = Tensor::<D>::from_data(
+                        TensorData::new(values.to_vec(), shape),
+                        &tensor.device(),
+                    );
+                    if tensor.is_require_grad() {
+                        loaded.require_grad()
+                    } else {
+                        loaded
+                    }
+                }
+                Err(e) => {
+                    self.error.get_or_insert(e);
+                    tensor
+                }
+            };
+            Param::from_mapped_value(id, tensor, mapper)
+        }
+    }
+    let mut load = Load {
+        path: Vec::new(),
+        prefix,
+        checkpoint,
+        error: None,
+    };
+    let module = module.map(&mut load);
+    match load.error {
+        Some(e) => Err(e),
+        None => Ok(module),
+    }
+}

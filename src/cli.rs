@@ -15,6 +15,7 @@ use crate::generator::{GeneratorConfig, GeneratorWeights};
 use crate::input_error;
 use crate::io::OutputFormat;
 use crate::synth::{DEFAULT_BAND_PIXELS, DeviceChoice, Synth};
+use crate::train::{TrainConfig, Trainer};
 
 /// The honeycomb generator published by the authors of IPFN (MIT), converted with
 /// `ipfn import`; see `exemplars/README.md`.
@@ -40,8 +41,149 @@ pub struct Cli {
 pub enum Command {
     /// Paint a sample of a trained pattern (PNG, EXR or NPY).
     Synth(SynthArgs),
+    /// Learn a pattern from one exemplar (PNG, JPEG or EXR): WGAN-GP, checkpoints, previews.
+    Train(TrainArgs),
     /// Convert an authors' PyTorch generator (netG.pth) into an ipfn model file.
     Import(ImportArgs),
+    /// Draw one of the procedural exemplars (bricks, weave, stripes) to a PNG.
+    Draw(DrawArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// The exemplar: PNG (8/16-bit), JPEG or EXR; gray, RGB or RGBA (alpha is learned as a
+    /// channel). Not needed with --resume.
+    pub exemplar: Option<PathBuf>,
+    /// TOML config (see configs/); flags below override it. Default: configs/default.toml's values.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Run folder. Default: runs/<exemplar name>.
+    #[arg(long, short, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Continue the run in DIR from its latest.ipfn, exactly where it stopped.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["exemplar", "config", "out"])]
+    pub resume: Option<PathBuf>,
+    /// Where to train: flex (CPU) or wgpu (GPU).
+    #[arg(long, default_value = "flex")]
+    pub device: String,
+    /// Print nothing but errors.
+    #[arg(long, short)]
+    pub quiet: bool,
+    #[command(flatten)]
+    pub overrides: TrainOverrides,
+}
+
+/// Flags that override config keys of the same name.
+#[derive(Debug, Args, Default)]
+pub struct TrainOverrides {
+    /// Total iterations (with --resume: the new total).
+    #[arg(long)]
+    pub iterations: Option<u64>,
+    /// Crops per step.
+    #[arg(long)]
+    pub batch: Option<usize>,
+    /// Crop size in pixels, a multiple of 16.
+    #[arg(long)]
+    pub crop: Option<usize>,
+    /// Random shift of generated crops, in coordinate units (a crop spans 2).
+    #[arg(long)]
+    pub shift: Option<f32>,
+    /// Critic updates per iteration.
+    #[arg(long)]
+    pub critic_steps: Option<usize>,
+    /// Generator updates per iteration.
+    #[arg(long)]
+    pub generator_steps: Option<usize>,
+    /// Adam learning rate.
+    #[arg(long)]
+    pub lr: Option<f64>,
+    /// Seed of every random draw.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Scale the exemplar first (Lanczos-3, anti-aliased), e.g. 0.5.
+    #[arg(long)]
+    pub resize: Option<f64>,
+    /// Checkpoint every N iterations.
+    #[arg(long)]
+    pub checkpoint_every: Option<u64>,
+    /// Preview image every N iterations.
+    #[arg(long)]
+    pub preview_every: Option<u64>,
+    /// Plain log line every N iterations (when stderr is not a terminal).
+    #[arg(long)]
+    pub log_every: Option<u64>,
+    /// Generator: encoding octaves.
+    #[arg(long)]
+    pub octaves: Option<usize>,
+    /// Generator: latent channels.
+    #[arg(long)]
+    pub latent_dim: Option<usize>,
+    /// Generator: hidden layers.
+    #[arg(long)]
+    pub hidden_layers: Option<usize>,
+    /// Generator: units per hidden layer.
+    #[arg(long)]
+    pub width: Option<usize>,
+}
+
+impl TrainOverrides {
+    /// Applies the flags to `config`.
+    pub fn apply(&self, c: &mut TrainConfig) {
+        macro_rules! set {
+            ($($f:ident),*) => { $( if let Some(v) = self.$f.clone() { c.$f = v; } )* };
+        }
+        set!(
+            iterations,
+            batch,
+            crop,
+            shift,
+            critic_steps,
+            generator_steps,
+            lr,
+            seed,
+            resize,
+            checkpoint_every,
+            preview_every,
+            log_every
+        );
+        set!(octaves, latent_dim, hidden_layers, width);
+    }
+
+    /// Flags that change the model or the random streams, which a resumed run cannot change.
+    fn fixed_on_resume(&self) -> Vec<&'static str> {
+        let mut v = Vec::new();
+        macro_rules! check {
+            ($($f:ident),*) => { $( if self.$f.is_some() { v.push(concat!("--", stringify!($f))); } )* };
+        }
+        check!(
+            batch,
+            crop,
+            shift,
+            critic_steps,
+            generator_steps,
+            lr,
+            seed,
+            resize,
+            octaves,
+            latent_dim,
+            hidden_layers,
+            width
+        );
+        v
+    }
+}
+
+#[derive(Debug, Args)]
+pub struct DrawArgs {
+    /// bricks (32x16 bricks: period 32 across, 32 down), weave (thread pitch 8: period 16) or
+    /// stripes (period 40 across).
+    pub pattern: String,
+    /// Width and height in pixels.
+    #[arg(long, default_value_t = 256)]
+    pub size: usize,
+    /// Output PNG.
+    #[arg(long, short, value_name = "PATH")]
+    pub out: PathBuf,
 }
 
 #[derive(Debug, Args)]
@@ -120,7 +262,9 @@ pub fn run() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Synth(args) => synth(args),
+        Command::Train(args) => train(args),
         Command::Import(args) => import(args),
+        Command::Draw(args) => draw(args),
     }
 }
 
@@ -292,5 +436,173 @@ fn import(args: ImportArgs) -> Result<()> {
         config.channels,
         weights.k
     );
+    Ok(())
+}
+
+fn train(args: TrainArgs) -> Result<()> {
+    let device = match args.device.parse::<DeviceChoice>()? {
+        DeviceChoice::Cpu | DeviceChoice::Flex => burn::prelude::Device::flex(),
+        DeviceChoice::Wgpu => crate::synth::wgpu_device()?,
+    };
+    let say = |s: String| {
+        if !args.quiet {
+            eprintln!("{s}");
+        }
+    };
+    let mut trainer = match &args.resume {
+        Some(dir) => {
+            let fixed = args.overrides.fixed_on_resume();
+            if !fixed.is_empty() {
+                return Err(input_error!(
+                    "{} cannot change when resuming (they change the model or its random draws); start a new run with --out instead",
+                    fixed.join(", ")
+                ));
+            }
+            let mut t = Trainer::resume(dir, args.overrides.iterations, &device)?;
+            args.overrides.apply(&mut t.config);
+            say(format!(
+                "resuming {} at iteration {}",
+                dir.display(),
+                t.iteration
+            ));
+            t
+        }
+        None => {
+            let exemplar = args.exemplar.as_ref().ok_or_else(|| {
+                input_error!("no exemplar given: `ipfn train IMAGE` starts a run, `ipfn train --resume runs/NAME` continues one")
+            })?;
+            let mut config = match &args.config {
+                Some(path) => {
+                    let text = std::fs::read_to_string(path)
+                        .map_err(|e| input_error!("{}: cannot read: {e}", path.display()))?;
+                    TrainConfig::from_toml(&text, path)?
+                }
+                None => TrainConfig::default(),
+            };
+            args.overrides.apply(&mut config);
+            let run_dir = args.out.clone().unwrap_or_else(|| {
+                let stem = exemplar
+                    .file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_else(|| "run".into());
+                Path::new("runs").join(stem)
+            });
+            if run_dir.join("latest.ipfn").exists() {
+                return Err(input_error!(
+                    "{} already holds a run; continue it with `ipfn train --resume {}` or start another with --out DIR",
+                    run_dir.display(),
+                    run_dir.display()
+                ));
+            }
+            Trainer::new(config, exemplar, &run_dir, &device)?
+        }
+    };
+    trainer.prepare_run_dir()?;
+    let total = trainer.config.iterations;
+    say(format!(
+        "training {} -> {} ({} iterations, batch {}, crop {}, {})",
+        trainer.run_dir().display(),
+        trainer.run_dir().join("latest.ipfn").display(),
+        total,
+        trainer.config.batch,
+        trainer.config.crop,
+        args.device
+    ));
+
+    static STOP: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+    let _ = ctrlc::set_handler(|| {
+        if STOP.swap(true, std::sync::atomic::Ordering::SeqCst) {
+            std::process::exit(130); // a second Ctrl-C: stop now (latest.ipfn is intact)
+        }
+        eprintln!(
+            "\ninterrupted: finishing this iteration and saving a checkpoint (Ctrl-C again to quit at once)"
+        );
+    });
+
+    let tty = std::io::stderr().is_terminal();
+    let bar = (!args.quiet && tty).then(|| {
+        let bar = indicatif::ProgressBar::new(total);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:30} {pos}/{len} it  {per_sec}  eta {eta}  {msg}",
+            )
+            .expect("valid progress template"),
+        );
+        bar.set_position(trainer.iteration);
+        bar
+    });
+    let start = Instant::now();
+    let first = trainer.iteration;
+    let cfg = trainer.config.clone();
+    while trainer.iteration < total {
+        let stats = trainer.step();
+        trainer.append_metrics(&stats)?;
+        let it = trainer.iteration;
+        let line = format!(
+            "W {:.4}  gp {:.4}  G {:.4}  K {:.4} {:.4}",
+            stats.wasserstein, stats.penalty, stats.generator_loss, stats.k[0], stats.k[1]
+        );
+        match &bar {
+            Some(bar) => {
+                bar.set_position(it);
+                bar.set_message(line);
+            }
+            None if !args.quiet && (it % cfg.log_every == 0 || it == total) => {
+                eprintln!(
+                    "iter {it}/{total}  {line}  {:.3} it/s",
+                    stats.iterations_per_second
+                );
+            }
+            None => {}
+        }
+        let stop = STOP.load(std::sync::atomic::Ordering::SeqCst);
+        if it % cfg.checkpoint_every == 0 || it == total || stop {
+            trainer.save_checkpoint()?;
+        }
+        if it % cfg.preview_every == 0 || it == total {
+            trainer.save_preview()?;
+        }
+        if stop {
+            if let Some(bar) = &bar {
+                bar.abandon();
+            }
+            return Err(crate::Error::Interrupted(format!(
+                "interrupted at iteration {it}; saved {}; continue with `ipfn train --resume {}`",
+                trainer.run_dir().join("latest.ipfn").display(),
+                trainer.run_dir().display()
+            )));
+        }
+    }
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    say(format!(
+        "trained {} iterations in {:.1} s; model: {} (ipfn synth uses it by default here)",
+        trainer.iteration - first,
+        start.elapsed().as_secs_f64(),
+        trainer.run_dir().join("latest.ipfn").display()
+    ));
+    Ok(())
+}
+
+fn draw(args: DrawArgs) -> Result<()> {
+    use crate::procedural;
+    if args.size == 0 {
+        return Err(input_error!("--size 0: must be at least 1"));
+    }
+    let n = args.size;
+    let unit = match args.pattern.as_str() {
+        "bricks" => procedural::bricks(n, n, 32, 16),
+        "weave" => procedural::weave(n, n, 8),
+        "stripes" => procedural::stripes(n, n, 40.0),
+        other => {
+            return Err(input_error!(
+                "unknown pattern '{other}'; use bricks, weave or stripes"
+            ));
+        }
+    };
+    let values: Vec<f32> = unit.iter().map(|v| v * 2.0 - 1.0).collect();
+    crate::io::write_png(&args.out, n, n, 3, &values)?;
+    eprintln!("wrote {} ({n}x{n} {})", args.out.display(), args.pattern);
     Ok(())
 }

@@ -10,6 +10,9 @@ pub enum Error {
     /// Something failed that the user's input does not explain.
     #[error("{0}")]
     Runtime(String),
+    /// Stopped by Ctrl-C after saving what there was to save.
+    #[error("{0}")]
+    Interrupted(String),
 }
 
 impl Error {
@@ -18,6 +21,7 @@ impl Error {
         match self {
             Error::Input(_) => 2,
             Error::Runtime(_) => 1,
+            Error::Interrupted(_) => 130,
         }
     }
 }

@@ -448,3 +448,168 @@ pub fn to_unit_u8(v: f32) -> u8 {
 pub fn to_unit_u16(v: f32) -> u16 {
     (((v + 1.0) * 0.5).clamp(0.0, 1.0) * 65535.0).round() as u16
 }
+
+/// An exemplar image: values scaled to [-1, 1], row-major `[height, width, channels]`.
+///
+/// Channels are kept as the file has them: gray (1), gray + alpha (2), RGB (3), RGBA (4). Alpha
+/// is learned as one more channel, so synthesized output carries alpha too (useful for cut-outs
+/// such as foliage); flatten the image first if alpha holds nothing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Exemplar {
+    pub width: usize,
+    pub height: usize,
+    pub channels: usize,
+    pub values: Vec<f32>,
+}
+
+impl Exemplar {
+    /// From values in [0, 1], `[height, width, channels]`.
+    pub fn from_unit(width: usize, height: usize, channels: usize, unit: &[f32]) -> Self {
+        assert_eq!(unit.len(), width * height * channels);
+        Self {
+            width,
+            height,
+            channels,
+            values: unit.iter().map(|v| v.clamp(0.0, 1.0) * 2.0 - 1.0).collect(),
+        }
+    }
+
+    /// Resamples to `width x height` with a Lanczos-3 filter (scaled to the output's footprint
+    /// when shrinking, so it anti-aliases).
+    pub fn resized(&self, width: usize, height: usize) -> Self {
+        let c = self.channels;
+        let mut rgba = image::Rgba32FImage::new(self.width as u32, self.height as u32);
+        for (i, px) in rgba.pixels_mut().enumerate() {
+            let mut v = [0f32; 4];
+            for (k, slot) in v.iter_mut().enumerate().take(c) {
+                *slot = self.values[i * c + k];
+            }
+            *px = image::Rgba(v);
+        }
+        let out = image::imageops::resize(
+            &rgba,
+            width as u32,
+            height as u32,
+            image::imageops::FilterType::Lanczos3,
+        );
+        let values = out
+            .pixels()
+            .flat_map(|p| {
+                p.0[..c]
+                    .iter()
+                    .map(|v| v.clamp(-1.0, 1.0))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        Self {
+            width,
+            height,
+            channels: c,
+            values,
+        }
+    }
+
+    /// A 64-bit fingerprint of the pixels (resume checks that the exemplar did not change).
+    pub fn fingerprint(&self) -> u64 {
+        let mut h = crate::latent::mix64(
+            (self.width as u64) << 32 ^ self.height as u64 ^ (self.channels as u64) << 60,
+        );
+        for v in &self.values {
+            h = crate::latent::mix64(h ^ v.to_bits() as u64);
+        }
+        h
+    }
+}
+
+/// Reads a PNG (8/16-bit), JPEG or EXR exemplar.
+pub fn read_exemplar(path: &Path) -> Result<Exemplar> {
+    if !path.exists() {
+        return Err(input_error!("{}: no such file", path.display()));
+    }
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    if ext == "exr" {
+        return read_exr_exemplar(path);
+    }
+    let image = image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|e| input_error!("{}: cannot read: {e}", path.display()))?
+        .decode()
+        .map_err(|e| input_error!("{}: not a readable PNG or JPEG image ({e})", path.display()))?;
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    use image::ColorType::*;
+    let (channels, unit): (usize, Vec<f32>) = match image.color() {
+        L8 | L16 => (1, image.to_luma32f().into_raw()),
+        La8 | La16 => (2, image.to_luma_alpha32f().into_raw()),
+        Rgb8 | Rgb16 | Rgb32F => (3, image.to_rgb32f().into_raw()),
+        Rgba8 | Rgba16 | Rgba32F => (4, image.to_rgba32f().into_raw()),
+        other => {
+            return Err(input_error!(
+                "{}: unsupported pixel format {other:?}; use gray, RGB or RGBA",
+                path.display()
+            ));
+        }
+    };
+    if w == 0 || h == 0 {
+        return Err(input_error!("{}: the image is empty", path.display()));
+    }
+    Ok(Exemplar::from_unit(w, h, channels, &unit))
+}
+
+/// EXR exemplars: channels Y (gray) or R, G, B, optionally A; values expected in [0, 1]
+/// (outside is clipped).
+fn read_exr_exemplar(path: &Path) -> Result<Exemplar> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| input_error!("{}: not a readable EXR image ({e})", path.display()))?;
+    let layer = image.layer_data;
+    let (w, h) = (layer.size.0, layer.size.1);
+    let find = |name: &str| {
+        layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+    };
+    let order: Vec<&str> = if find("R").is_some() && find("G").is_some() && find("B").is_some() {
+        vec!["R", "G", "B", "A"]
+    } else if find("Y").is_some() {
+        vec!["Y", "A"]
+    } else {
+        return Err(input_error!(
+            "{}: EXR needs channels R, G, B (and A) or Y",
+            path.display()
+        ));
+    };
+    let chans: Vec<_> = order.iter().filter_map(|n| find(n)).collect();
+    let c = chans.len();
+    let mut unit = vec![0f32; w * h * c];
+    for (k, ch) in chans.iter().enumerate() {
+        for i in 0..w * h {
+            unit[i * c + k] = ch.sample_data.value_by_flat_index(i).to_f32();
+        }
+    }
+    Ok(Exemplar::from_unit(w, h, c, &unit))
+}
+
+/// Writes `[height, width, channels]` values in [-1, 1] as an 8-bit PNG, atomically.
+pub fn write_png(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: usize,
+    values: &[f32],
+) -> Result<()> {
+    let mut writer =
+        ImageWriter::create(path, OutputFormat::Png { bits: 8 }, width, height, channels)?;
+    writer.write_rows(values)?;
+    writer.finish()
+}

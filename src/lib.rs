@@ -5,7 +5,10 @@
 //! - [`encoding`]: the periodic sin/cos encoding of `p / K`.
 //! - [`latent`]: the infinite, deterministic latent random field.
 //! - [`generator`]: the MLP generator (a burn module, and a fused CPU evaluator).
+//! - [`critic`]: the critic, with its exact input gradient for the gradient penalty.
+//! - [`train`]: WGAN-GP training, checkpoints and resume.
 //! - [`sample`]: coordinate grids of pixels.
+//! - [`procedural`]: exemplars drawn by our own code, with known periods.
 //! - [`synth`]: painting regions and whole images, tileable or not.
 //! - [`checkpoint`]: model files, and import of the authors' PyTorch generators.
 //! - [`io`]: arrays and images in and out, written atomically.
@@ -13,12 +16,15 @@
 
 pub mod checkpoint;
 pub mod cli;
+pub mod critic;
 pub mod encoding;
 pub mod error;
 pub mod generator;
 pub mod io;
 pub mod latent;
+pub mod procedural;
 pub mod sample;
 pub mod synth;
+pub mod train;
 
 pub use error::{Error, Result};

@@ -1,0 +1,142 @@
+//! Adam (Kingma & Ba), as PyTorch's `torch.optim.Adam` computes it, with its moments held by
+//! parameter path so they can be saved in a checkpoint and restored bit for bit.
+
+use std::collections::BTreeMap;
+
+use burn::module::{Module, ModuleMapper, Param};
+use burn::optim::GradientsParams;
+use burn::prelude::*;
+
+use crate::checkpoint::Checkpoint;
+
+/// Adam's hyper-parameters and state for one module.
+#[derive(Debug, Clone)]
+pub struct Adam {
+    pub lr: f64,
+    pub beta1: f64,
+    pub beta2: f64,
+    pub eps: f64,
+    /// Steps taken so far (for bias correction).
+    pub steps: u64,
+    /// First and second moments by parameter path, flattened.
+    moments: BTreeMap<String, (Tensor<1>, Tensor<1>)>,
+}
+
+impl Adam {
+    pub fn new(lr: f64, beta1: f64, beta2: f64) -> Self {
+        Self {
+            lr,
+            beta1,
+            beta2,
+            eps: 1e-8,
+            steps: 0,
+            moments: BTreeMap::new(),
+        }
+    }
+
+    /// One update of every parameter of `module` that has a gradient in `grads`.
+    pub fn step<M: Module>(&mut self, module: M, grads: GradientsParams) -> M {
+        self.steps += 1;
+        let mut mapper = AdamMapper {
+            adam: self,
+            grads,
+            path: Vec::new(),
+        };
+        module.map(&mut mapper)
+    }
+
+    /// Stores the step count and moments under `{prefix}.m.{path}` / `{prefix}.v.{path}`.
+    pub fn write_to(&self, prefix: &str, checkpoint: &mut Checkpoint) {
+        checkpoint
+            .metadata
+            .insert(format!("{prefix}.steps"), self.steps.to_string());
+        for (path, (m, v)) in &self.moments {
+            for (kind, t) in [("m", m), ("v", v)] {
+                let values = t
+                    .clone()
+                    .try_into_vec_as::<f32>()
+                    .expect("moments are readable as f32");
+                checkpoint.insert(
+                    format!("{prefix}.{kind}.{path}"),
+                    vec![values.len()],
+                    values,
+                );
+            }
+        }
+    }
+
+    /// Restores what [`Adam::write_to`] stored, on `device`.
+    pub fn read_from(
+        &mut self,
+        prefix: &str,
+        checkpoint: &Checkpoint,
+        device: &Device,
+    ) -> crate::Result<()> {
+        self.steps = checkpoint
+            .meta(&format!("{prefix}.steps"))?
+            .parse()
+            .map_err(|_| {
+                crate::input_error!("{}: unreadable {prefix}.steps", checkpoint.source.display())
+            })?;
+        self.moments.clear();
+        let m_prefix = format!("{prefix}.m.");
+        for (name, m) in checkpoint.tensors.range(m_prefix.clone()..) {
+            let Some(path) = name.strip_prefix(&m_prefix) else {
+                break;
+            };
+            let v = checkpoint.tensor(&format!("{prefix}.v.{path}"), &m.shape)?;
+            let tensor = |values: &[f32]| {
+                Tensor::<1>::from_data(TensorData::new(values.to_vec(), [values.len()]), device)
+            };
+            self.moments
+                .insert(path.to_string(), (tensor(&m.values), tensor(v)));
+        }
+        Ok(())
+    }
+}
+
+struct AdamMapper<'a> {
+    adam: &'a mut Adam,
+    grads: GradientsParams,
+    path: Vec<String>,
+}
+
+impl ModuleMapper for AdamMapper<'_> {
+    fn enter_module(&mut self, name: &str, _: &str) {
+        self.path.push(name.to_string());
+    }
+
+    fn exit_module(&mut self, _: &str, _: &str) {
+        self.path.pop();
+    }
+
+    fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
+        let (id, tensor, mapper) = param.consume();
+        let Some(grad) = self.grads.remove::<D>(id) else {
+            return Param::from_mapped_value(id, tensor, mapper);
+        };
+        let a = &mut *self.adam;
+        let shape = grad.dims();
+        let n: usize = shape.iter().product();
+        let grad = grad.reshape([n]);
+        let path = self.path.join(".");
+        let (m, v) = match a.moments.remove(&path) {
+            Some((m, v)) => (m, v),
+            None => (grad.zeros_like(), grad.zeros_like()),
+        };
+        let m = m * a.beta1 + grad.clone() * (1.0 - a.beta1);
+        let v = v * a.beta2 + grad.powi_scalar(2) * (1.0 - a.beta2);
+        let t = a.steps as i32;
+        let bias1 = 1.0 - a.beta1.powi(t);
+        let bias2 = 1.0 - a.beta2.powi(t);
+        let denom = v.clone().sqrt() / bias2.sqrt() + a.eps;
+        let update = (m.clone() / denom * (a.lr / bias1)).reshape(shape);
+        a.moments.insert(path, (m, v));
+        let require_grad = tensor.is_require_grad();
+        let mut updated = Tensor::from_inner(tensor.inner() - update);
+        if require_grad {
+            updated = updated.require_grad();
+        }
+        Param::from_mapped_value(id, updated, mapper)
+    }
+}

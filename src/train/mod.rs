@@ -1,0 +1,653 @@
+//! Training (paper §3.3): WGAN-GP between random crops of the exemplar and generated crops.
+//!
+//! Each iteration runs `critic_steps` critic updates (fresh real crops, fresh fakes, the exact
+//! gradient penalty of [`crate::critic`]) and then `generator_steps` generator updates. Every
+//! random draw (weight init, crop positions, shifts, latent fields, interpolation weights) is a
+//! hash of `(seed, purpose, iteration, step, sample)`, so a resumed run continues bit for bit.
+
+pub mod adam;
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use burn::module::{Module, ModuleMapper, Param};
+use burn::optim::GradientsParams;
+use burn::prelude::*;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::checkpoint::{self, Checkpoint};
+use crate::critic::{Critic, CriticConfig};
+use crate::error::{Error, Result};
+use crate::generator::{Generator, GeneratorConfig, GeneratorWeights};
+use crate::input_error;
+use crate::io::{Exemplar, write_png};
+use crate::latent::{LatentField, derive_seed, mix64};
+use crate::synth::Synth;
+use adam::Adam;
+
+/// Every training setting. Read from TOML (unknown keys are rejected), overridden by flags,
+/// saved as `config.toml` in the run folder.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrainConfig {
+    /// Iterations to train (each: `critic_steps` critic then `generator_steps` generator updates).
+    pub iterations: u64,
+    /// Crops per step.
+    pub batch: usize,
+    /// Crop size in pixels (a multiple of 16; a crop spans 2 coordinate units).
+    pub crop: usize,
+    /// Random shift of the generated crops, uniform in [-shift, shift] coordinate units per axis.
+    pub shift: f32,
+    pub critic_steps: usize,
+    pub generator_steps: usize,
+    /// Adam learning rate and betas, for both networks.
+    pub lr: f64,
+    pub beta1: f64,
+    pub beta2: f64,
+    /// Weight of the gradient penalty.
+    pub gp_lambda: f64,
+    /// Seed of every random draw.
+    pub seed: u64,
+    /// Scale the exemplar by this factor first (Lanczos-3, anti-aliased); 1 keeps it as it is.
+    pub resize: f64,
+    /// Write a checkpoint (and update `latest.ipfn`) every this many iterations.
+    pub checkpoint_every: u64,
+    /// Write a preview image every this many iterations.
+    pub preview_every: u64,
+    /// Plain log line every this many iterations (when stderr is not a terminal).
+    pub log_every: u64,
+    /// Generator: encoding octaves, latent channels, depth, width, blend sigma, latent scale.
+    pub octaves: usize,
+    pub latent_dim: usize,
+    pub hidden_layers: usize,
+    pub width: usize,
+    pub sigma: f32,
+    pub latent_scale: f32,
+    /// Critic: output channels of its stride-2 convolutions.
+    pub critic_widths: Vec<usize>,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            iterations: 5000,
+            batch: 4,
+            crop: 128,
+            shift: 4.0,
+            critic_steps: 5,
+            generator_steps: 5,
+            lr: 1e-4,
+            beta1: 0.5,
+            beta2: 0.9,
+            gp_lambda: 10.0,
+            seed: 0,
+            resize: 1.0,
+            checkpoint_every: 100,
+            preview_every: 100,
+            log_every: 10,
+            octaves: 5,
+            latent_dim: 5,
+            hidden_layers: 10,
+            width: 128,
+            sigma: 0.2,
+            latent_scale: 0.5,
+            critic_widths: vec![64, 128, 256, 512],
+        }
+    }
+}
+
+impl TrainConfig {
+    /// Parses TOML; `source` names the file in errors.
+    pub fn from_toml(text: &str, source: &Path) -> Result<Self> {
+        toml::from_str(text).map_err(|e| {
+            let msg = e.message().replace('\n', " ");
+            input_error!("{}: {msg}", source.display())
+        })
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("config serialises")
+    }
+
+    pub fn generator_config(&self, channels: usize) -> GeneratorConfig {
+        GeneratorConfig::new()
+            .with_dims(2)
+            .with_channels(channels)
+            .with_octaves(self.octaves)
+            .with_latent_dim(self.latent_dim)
+            .with_hidden_layers(self.hidden_layers)
+            .with_width(self.width)
+            .with_sigma(self.sigma)
+            .with_latent_scale(self.latent_scale)
+            .with_crop(self.crop)
+    }
+
+    pub fn critic_config(&self, channels: usize) -> CriticConfig {
+        CriticConfig::new(channels, self.crop).with_widths(self.critic_widths.clone())
+    }
+
+    /// Checks the numbers, and that the exemplar is large enough for the crop.
+    pub fn validate(&self, exemplar: &Exemplar, exemplar_path: &Path) -> Result<()> {
+        let positive = [
+            ("iterations", self.iterations as usize),
+            ("batch", self.batch),
+            ("critic_steps", self.critic_steps),
+            ("generator_steps", self.generator_steps),
+            ("checkpoint_every", self.checkpoint_every as usize),
+            ("preview_every", self.preview_every as usize),
+            ("log_every", self.log_every as usize),
+        ];
+        for (name, v) in positive {
+            if v == 0 {
+                return Err(input_error!("{name} = 0: must be at least 1"));
+            }
+        }
+        if !(self.lr > 0.0 && self.gp_lambda >= 0.0 && self.shift >= 0.0 && self.resize > 0.0) {
+            return Err(input_error!(
+                "lr and resize must be positive, gp_lambda and shift not negative"
+            ));
+        }
+        self.critic_config(exemplar.channels).validate()?;
+        self.generator_config(exemplar.channels).validate()?;
+        if exemplar.width < self.crop || exemplar.height < self.crop {
+            return Err(input_error!(
+                "{}: the exemplar is {}x{}, smaller than the {} pixel crop; use a smaller --crop (a multiple of 16, e.g. {}) or --resize",
+                exemplar_path.display(),
+                exemplar.width,
+                exemplar.height,
+                self.crop,
+                (exemplar.width.min(exemplar.height) / 16 * 16).max(16)
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Purposes of random draws, so no two share a stream.
+mod stream {
+    pub const INIT_GENERATOR: u64 = 1;
+    pub const INIT_CRITIC: u64 = 2;
+    pub const REAL_CROP: u64 = 3;
+    pub const SHIFT: u64 = 4;
+    pub const LATENT: u64 = 5;
+    pub const ALPHA: u64 = 6;
+    pub const CRITIC_FAKE: u64 = 7;
+    pub const GENERATOR_FAKE: u64 = 8;
+    pub const PREVIEW: u64 = 9;
+}
+
+/// Uniform in [0, 1) from a seed and counters.
+fn uniform(seed: u64, counters: &[u64]) -> f32 {
+    (derive_seed(seed, counters) >> 40) as f32 / 16_777_216.0
+}
+
+/// Re-initialises every float parameter except the generator's K with PyTorch's default
+/// uniform(-1/sqrt(fan_in), 1/sqrt(fan_in)), from hashed draws.
+fn initialise<M: Module>(module: M, seed: u64, stream: u64) -> M {
+    struct Init {
+        seed: u64,
+        stream: u64,
+        path: Vec<String>,
+        fan_in: usize,
+    }
+    impl ModuleMapper for Init {
+        fn enter_module(&mut self, name: &str, _: &str) {
+            self.path.push(name.to_string());
+        }
+        fn exit_module(&mut self, _: &str, _: &str) {
+            self.path.pop();
+        }
+        fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
+            let name = self.path.last().cloned().unwrap_or_default();
+            if name == "k" {
+                return param;
+            }
+            let (id, tensor, mapper) = param.consume();
+            let shape = tensor.dims();
+            if name == "weight" {
+                // Linear weights are [in, out]; convolution weights [out, in, kh, kw].
+                self.fan_in = if D == 2 {
+                    shape[0]
+                } else {
+                    shape[1..].iter().product()
+                };
+            }
+            let bound = 1.0 / (self.fan_in.max(1) as f32).sqrt();
+            let key = self.path.iter().fold(self.seed, |h, p| {
+                mix64(h ^ p.bytes().fold(0u64, |a, b| mix64(a ^ b as u64)))
+            });
+            let n: usize = shape.iter().product();
+            let values: Vec<f32> = (0..n as u64)
+                .map(|i| (uniform(key, &[self.stream, i]) * 2.0 - 1.0) * bound)
+                .collect();
+            let fresh = Tensor::<D>::from_data(TensorData::new(values, shape), &tensor.device());
+            let fresh = if tensor.is_require_grad() {
+                fresh.require_grad()
+            } else {
+                fresh
+            };
+            Param::from_mapped_value(id, fresh, mapper)
+        }
+    }
+    module.map(&mut Init {
+        seed,
+        stream,
+        path: Vec::new(),
+        fan_in: 1,
+    })
+}
+
+/// Losses of one iteration (from its last critic and generator steps).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct IterationStats {
+    pub iteration: u64,
+    /// Critic's Wasserstein estimate: mean D(real) - mean D(fake).
+    pub wasserstein: f32,
+    pub penalty: f32,
+    pub generator_loss: f32,
+    pub k: [f32; 2],
+    pub iterations_per_second: f32,
+}
+
+/// A training run: networks, optimisers, exemplar and run folder.
+pub struct Trainer {
+    pub config: TrainConfig,
+    exemplar: Exemplar,
+    exemplar_path: PathBuf,
+    run_dir: PathBuf,
+    device: Device,
+    generator: Generator,
+    critic: Critic,
+    adam_generator: Adam,
+    adam_critic: Adam,
+    /// Iterations completed.
+    pub iteration: u64,
+}
+
+/// Checkpoint metadata keys of the training state.
+const TRAIN_CONFIG_KEY: &str = "train_config";
+const ITERATION_KEY: &str = "iteration";
+const EXEMPLAR_KEY: &str = "exemplar";
+const FINGERPRINT_KEY: &str = "exemplar_fingerprint";
+const CRITIC_CONFIG_KEY: &str = "critic_config";
+
+/// Loads the exemplar and applies the config's resize.
+pub fn load_exemplar(path: &Path, resize: f64) -> Result<Exemplar> {
+    let exemplar = crate::io::read_exemplar(path)?;
+    if resize == 1.0 {
+        return Ok(exemplar);
+    }
+    let w = (exemplar.width as f64 * resize).round().max(1.0) as usize;
+    let h = (exemplar.height as f64 * resize).round().max(1.0) as usize;
+    Ok(exemplar.resized(w, h))
+}
+
+impl Trainer {
+    /// A fresh run. `device` is a plain device (flex or wgpu); training uses its autodiff form.
+    pub fn new(
+        config: TrainConfig,
+        exemplar_path: &Path,
+        run_dir: &Path,
+        device: &Device,
+    ) -> Result<Self> {
+        let exemplar = load_exemplar(exemplar_path, config.resize)?;
+        config.validate(&exemplar, exemplar_path)?;
+        let device = device.clone().autodiff();
+        let generator = initialise(
+            config.generator_config(exemplar.channels).init(&device),
+            config.seed,
+            stream::INIT_GENERATOR,
+        );
+        let critic = initialise(
+            config.critic_config(exemplar.channels).init(&device),
+            config.seed,
+            stream::INIT_CRITIC,
+        );
+        Ok(Self {
+            adam_generator: Adam::new(config.lr, config.beta1, config.beta2),
+            adam_critic: Adam::new(config.lr, config.beta1, config.beta2),
+            config,
+            exemplar,
+            exemplar_path: exemplar_path.to_path_buf(),
+            run_dir: run_dir.to_path_buf(),
+            device,
+            generator,
+            critic,
+            iteration: 0,
+        })
+    }
+
+    /// Continues the run in `run_dir` from its `latest.ipfn`. `iterations`, if given, replaces
+    /// the planned total.
+    pub fn resume(run_dir: &Path, iterations: Option<u64>, device: &Device) -> Result<Self> {
+        let latest = run_dir.join("latest.ipfn");
+        if !latest.exists() {
+            return Err(input_error!(
+                "{}: no latest.ipfn to resume from; is this a training run folder?",
+                run_dir.display()
+            ));
+        }
+        let ckpt = Checkpoint::load(&latest)?;
+        let mut config = TrainConfig::from_toml(ckpt.meta(TRAIN_CONFIG_KEY)?, &latest)?;
+        if let Some(n) = iterations {
+            config.iterations = n;
+        }
+        let exemplar_path = PathBuf::from(ckpt.meta(EXEMPLAR_KEY)?);
+        let exemplar = load_exemplar(&exemplar_path, config.resize)?;
+        if ckpt.meta(FINGERPRINT_KEY)? != exemplar.fingerprint().to_string() {
+            return Err(input_error!(
+                "{}: the exemplar changed since this run started; start a new run instead of resuming",
+                exemplar_path.display()
+            ));
+        }
+        config.validate(&exemplar, &exemplar_path)?;
+        let device = device.clone().autodiff();
+        let (gen_config, weights) = GeneratorWeights::read_from(&ckpt)?;
+        if gen_config != config.generator_config(exemplar.channels) {
+            return Err(input_error!(
+                "{}: generator does not match the run's config",
+                latest.display()
+            ));
+        }
+        let generator = Generator::from_weights(&weights, &device);
+        let critic = checkpoint::read_module(
+            config.critic_config(exemplar.channels).init(&device),
+            "critic",
+            &ckpt,
+        )?;
+        let mut adam_generator = Adam::new(config.lr, config.beta1, config.beta2);
+        adam_generator.read_from("adam.generator", &ckpt, &device)?;
+        let mut adam_critic = Adam::new(config.lr, config.beta1, config.beta2);
+        adam_critic.read_from("adam.critic", &ckpt, &device)?;
+        let iteration = ckpt
+            .meta(ITERATION_KEY)?
+            .parse()
+            .map_err(|_| input_error!("{}: unreadable iteration count", latest.display()))?;
+        Ok(Self {
+            config,
+            exemplar,
+            exemplar_path,
+            run_dir: run_dir.to_path_buf(),
+            device,
+            generator,
+            critic,
+            adam_generator,
+            adam_critic,
+            iteration,
+        })
+    }
+
+    pub fn run_dir(&self) -> &Path {
+        &self.run_dir
+    }
+
+    pub fn generator(&self) -> &Generator {
+        &self.generator
+    }
+
+    pub fn critic(&self) -> &Critic {
+        &self.critic
+    }
+
+    /// The current generator's config and host weights.
+    pub fn model(&self) -> (GeneratorConfig, GeneratorWeights) {
+        (
+            self.config.generator_config(self.exemplar.channels),
+            self.generator.weights(),
+        )
+    }
+
+    /// Random real crops for step `step` of the current iteration.
+    ///
+    /// # Shapes
+    /// - output: `[batch, channels, crop, crop]`
+    pub fn real_batch(&self, counters: &[u64]) -> Tensor<4> {
+        let (b, crop, c) = (self.config.batch, self.config.crop, self.exemplar.channels);
+        let ex = &self.exemplar;
+        let mut data = vec![0f32; b * c * crop * crop];
+        for (s, sample) in data.chunks_mut(c * crop * crop).enumerate() {
+            let draw = |axis: u64, range: usize| {
+                let mut k = vec![stream::REAL_CROP, s as u64, axis];
+                k.extend_from_slice(counters);
+                ((uniform(self.config.seed, &k) * range as f32) as usize).min(range - 1)
+            };
+            let top = draw(0, ex.height - crop + 1);
+            let left = draw(1, ex.width - crop + 1);
+            for ch in 0..c {
+                for y in 0..crop {
+                    for x in 0..crop {
+                        sample[(ch * crop + y) * crop + x] =
+                            ex.values[((top + y) * ex.width + left + x) * c + ch];
+                    }
+                }
+            }
+        }
+        Tensor::from_data(TensorData::new(data, [b, c, crop, crop]), &self.device)
+    }
+
+    /// Generated crops: a crop's grid shifted by a random offset per sample, and a fresh
+    /// latent field per sample.
+    ///
+    /// # Shapes
+    /// - output: `[batch, channels, crop, crop]` on `generator`'s device
+    pub fn fake_batch(
+        &self,
+        generator: &Generator,
+        device: &Device,
+        counters: &[u64],
+    ) -> Tensor<4> {
+        let cfg = &self.config;
+        let (b, crop, c, ld) = (cfg.batch, cfg.crop, self.exemplar.channels, cfg.latent_dim);
+        let n = crop * crop;
+        let mut coords = vec![0f32; b * n * 2];
+        let mut latent = vec![0f32; b * n * ld];
+        coords
+            .par_chunks_mut(n * 2)
+            .zip(latent.par_chunks_mut(n * ld))
+            .enumerate()
+            .for_each(|(s, (p, z))| {
+                let key = |purpose: u64, extra: u64| {
+                    let mut k = vec![purpose, s as u64, extra];
+                    k.extend_from_slice(counters);
+                    k
+                };
+                let shift = [0u64, 1].map(|axis| {
+                    (uniform(cfg.seed, &key(stream::SHIFT, axis)) * 2.0 - 1.0) * cfg.shift
+                });
+                let field =
+                    LatentField::hashed(derive_seed(cfg.seed, &key(stream::LATENT, 0)), 2, ld)
+                        .with_sigma(cfg.sigma);
+                let step = 2.0 / crop as f32;
+                for i in 0..crop {
+                    for j in 0..crop {
+                        let q = i * crop + j;
+                        let point = [
+                            -1.0 + (i as f32 + 0.5) * step + shift[0],
+                            -1.0 + (j as f32 + 0.5) * step + shift[1],
+                        ];
+                        p[q * 2..q * 2 + 2].copy_from_slice(&point);
+                        let u = [point[0] * cfg.latent_scale, point[1] * cfg.latent_scale];
+                        field.at(&u, &mut z[q * ld..(q + 1) * ld]);
+                    }
+                }
+            });
+        let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, 2]), device);
+        let z = Tensor::<2>::from_data(TensorData::new(latent, [b * n, ld]), device);
+        generator
+            .forward(p, z) // [b * crop * crop, c]
+            .reshape([b, crop, crop, c])
+            .permute([0, 3, 1, 2]) // [b, c, crop, crop]
+    }
+
+    /// Runs one iteration: critic steps, then generator steps.
+    pub fn step(&mut self) -> IterationStats {
+        let start = Instant::now();
+        let it = self.iteration;
+        let cfg = self.config.clone();
+        let mut stats = IterationStats {
+            iteration: it + 1,
+            ..Default::default()
+        };
+        for step in 0..cfg.critic_steps as u64 {
+            let counters = [it, step];
+            let real = self.real_batch(&counters);
+            let frozen = self.generator.valid();
+            let inner = self.device.clone().inner();
+            let fake = Tensor::from_inner(self.fake_batch(
+                &frozen,
+                &inner,
+                &[stream::CRITIC_FAKE, it, step],
+            ));
+            let alphas: Vec<f32> = (0..cfg.batch as u64)
+                .map(|s| uniform(cfg.seed, &[stream::ALPHA, s, it, step]))
+                .collect();
+            let alpha = Tensor::<1>::from_data(TensorData::new(alphas, [cfg.batch]), &self.device);
+            let d_real = self.critic.forward(real.clone()).mean();
+            let d_fake = self.critic.forward(fake.clone()).mean();
+            let penalty = self
+                .critic
+                .gradient_penalty(real, fake, alpha, cfg.gp_lambda);
+            let loss = d_fake.clone() - d_real.clone() + penalty.clone();
+            let grads = GradientsParams::from_grads(loss.backward(), &self.critic);
+            self.critic = self.adam_critic.step(self.critic.clone(), grads);
+            stats.wasserstein = (d_real - d_fake).into_scalar::<f32>();
+            stats.penalty = penalty.into_scalar::<f32>();
+        }
+        for step in 0..cfg.generator_steps as u64 {
+            let frozen = self.critic.clone().no_grad();
+            let fake = self.fake_batch(
+                &self.generator,
+                &self.device,
+                &[stream::GENERATOR_FAKE, it, step],
+            );
+            let loss = frozen.forward(fake).mean().neg();
+            let grads = GradientsParams::from_grads(loss.clone().backward(), &self.generator);
+            self.generator = self.adam_generator.step(self.generator.clone(), grads);
+            stats.generator_loss = loss.into_scalar::<f32>();
+        }
+        self.iteration += 1;
+        let k = self
+            .generator
+            .k
+            .val()
+            .try_into_vec_as::<f32>()
+            .expect("K readable");
+        stats.k = [k[0], k[1]];
+        stats.iterations_per_second = 1.0 / start.elapsed().as_secs_f32();
+        stats
+    }
+
+    /// Writes `latest.ipfn` (full training state, also a synth-ready model) and
+    /// `checkpoints/iter-NNNNNN.ipfn` (the generator alone). Both are written atomically.
+    pub fn save_checkpoint(&self) -> Result<PathBuf> {
+        let (gen_config, weights) = self.model();
+        let mut model = Checkpoint::new();
+        weights.write_to(&gen_config, &mut model);
+        model
+            .metadata
+            .insert(TRAIN_CONFIG_KEY.into(), self.config.to_toml());
+        model
+            .metadata
+            .insert(ITERATION_KEY.into(), self.iteration.to_string());
+        let dir = self.run_dir.join("checkpoints");
+        std::fs::create_dir_all(&dir)
+            .map_err(|e| Error::Runtime(format!("{}: cannot create: {e}", dir.display())))?;
+        let path = dir.join(format!("iter-{:06}.ipfn", self.iteration));
+        model.save(&path)?;
+
+        let mut state = model;
+        let critic_config = self.config.critic_config(self.exemplar.channels);
+        state.metadata.insert(
+            CRITIC_CONFIG_KEY.into(),
+            serde_json::to_string(&critic_config).expect("serialises"),
+        );
+        state.metadata.insert(
+            EXEMPLAR_KEY.into(),
+            self.exemplar_path.to_string_lossy().into_owned(),
+        );
+        state.metadata.insert(
+            FINGERPRINT_KEY.into(),
+            self.exemplar.fingerprint().to_string(),
+        );
+        checkpoint::write_module(&self.critic, "critic", &mut state);
+        self.adam_generator.write_to("adam.generator", &mut state);
+        self.adam_critic.write_to("adam.critic", &mut state);
+        state.save(&self.run_dir.join("latest.ipfn"))?;
+        Ok(path)
+    }
+
+    /// Writes `previews/iter-NNNNNN.png`: a fixed-seed sample covering 4x the crop's area.
+    pub fn save_preview(&self) -> Result<PathBuf> {
+        let (config, weights) = self.model();
+        let side = 2 * self.config.crop;
+        let painter = Synth::new(config, weights)
+            .seed(derive_seed(self.config.seed, &[stream::PREVIEW]))
+            .painter()?;
+        let pixels = painter.render(
+            -(self.config.crop as i64),
+            -(self.config.crop as i64),
+            side,
+            side,
+        );
+        let dir = self.run_dir.join("previews");
+        std::fs::create_dir_all(&dir)
+            .map_err(|e| Error::Runtime(format!("{}: cannot create: {e}", dir.display())))?;
+        let path = dir.join(format!("iter-{:06}.png", self.iteration));
+        write_png(&path, side, side, self.exemplar.channels, &pixels)?;
+        Ok(path)
+    }
+
+    /// Creates the run folder and writes `config.toml`; keeps `metrics.csv` rows up to the
+    /// current iteration (a resumed run drops rows written after its last checkpoint).
+    pub fn prepare_run_dir(&self) -> Result<()> {
+        let err = |p: &Path, e: std::io::Error| Error::Runtime(format!("{}: {e}", p.display()));
+        std::fs::create_dir_all(&self.run_dir).map_err(|e| err(&self.run_dir, e))?;
+        crate::io::write_atomic(
+            &self.run_dir.join("config.toml"),
+            self.config.to_toml().as_bytes(),
+        )?;
+        let metrics = self.run_dir.join("metrics.csv");
+        let mut kept = String::from(METRICS_HEADER);
+        if let Ok(old) = std::fs::read_to_string(&metrics) {
+            for line in old.lines().skip(1) {
+                let it: u64 = line
+                    .split(',')
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .unwrap_or(u64::MAX);
+                if it <= self.iteration {
+                    kept.push_str(line);
+                    kept.push('\n');
+                }
+            }
+        }
+        crate::io::write_atomic(&metrics, kept.as_bytes())
+    }
+
+    /// Appends one row to `metrics.csv`.
+    pub fn append_metrics(&self, s: &IterationStats) -> Result<()> {
+        let path = self.run_dir.join("metrics.csv");
+        let mut file = std::fs::OpenOptions::new()
+            .append(true)
+            .open(&path)
+            .map_err(|e| Error::Runtime(format!("{}: {e}", path.display())))?;
+        writeln!(
+            file,
+            "{},{},{},{},{},{},{}",
+            s.iteration,
+            s.wasserstein,
+            s.penalty,
+            s.generator_loss,
+            s.k[0],
+            s.k[1],
+            s.iterations_per_second
+        )
+        .map_err(|e| Error::Runtime(format!("{}: {e}", path.display())))
+    }
+}
+
+/// Header of `metrics.csv`.
+pub const METRICS_HEADER: &str =
+    "iteration,wasserstein,penalty,generator_loss,k_rows,k_cols,iterations_per_second\n";
