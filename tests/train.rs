@@ -1,0 +1,373 @@
+//! Training end to end: it learns, it resumes bit for bit, it survives Ctrl-C and kill -9,
+//! and it refuses bad input with one line.
+
+mod common;
+
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use burn::prelude::*;
+use ipfn::checkpoint::Checkpoint;
+use ipfn::train::{TrainConfig, Trainer};
+
+fn ipfn(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ipfn"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("ipfn runs")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// A tiny model and critic so that an iteration takes milliseconds.
+const TINY: &str = r#"
+batch = 2
+crop = 16
+critic_steps = 2
+generator_steps = 2
+critic_widths = [4, 8, 8, 8]
+hidden_layers = 2
+width = 16
+checkpoint_every = 1
+preview_every = 2
+log_every = 1
+"#;
+
+fn setup() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    assert!(
+        ipfn(
+            dir.path(),
+            &["draw", "stripes", "--size", "48", "-o", "ex.png"]
+        )
+        .status
+        .success()
+    );
+    std::fs::write(dir.path().join("tiny.toml"), TINY).unwrap();
+    dir
+}
+
+#[test]
+fn resume_continues_bit_exactly() {
+    let dir = setup();
+    let d = dir.path();
+    let run = |args: &[&str]| {
+        let out = ipfn(d, args);
+        assert!(out.status.success(), "{:?}: {}", args, stderr(&out));
+    };
+    run(&[
+        "train",
+        "ex.png",
+        "--config",
+        "tiny.toml",
+        "--out",
+        "runs/one",
+        "--iterations",
+        "4",
+    ]);
+    run(&[
+        "train",
+        "ex.png",
+        "--config",
+        "tiny.toml",
+        "--out",
+        "runs/two",
+        "--iterations",
+        "2",
+    ]);
+    run(&["train", "--resume", "runs/two", "--iterations", "4"]);
+    let a = Checkpoint::load(&d.join("runs/one/latest.ipfn")).unwrap();
+    let b = Checkpoint::load(&d.join("runs/two/latest.ipfn")).unwrap();
+    assert_eq!(a.metadata["iteration"], "4");
+    assert_eq!(
+        a.tensors.keys().collect::<Vec<_>>(),
+        b.tensors.keys().collect::<Vec<_>>()
+    );
+    assert!(
+        a.tensors.keys().any(|k| k.starts_with("adam.critic.m.")),
+        "optimiser state is saved"
+    );
+    for (name, t) in &a.tensors {
+        assert!(
+            t == &b.tensors[name],
+            "{name} differs between 4 iterations and 2 + 2 resumed"
+        );
+    }
+    let rows = |p: &str| std::fs::read_to_string(d.join(p)).unwrap().lines().count();
+    assert_eq!(rows("runs/one/metrics.csv"), 5, "header + 4 rows");
+    assert_eq!(
+        rows("runs/two/metrics.csv"),
+        5,
+        "resume appends, without duplicates"
+    );
+    for f in [
+        "runs/one/config.toml",
+        "runs/one/checkpoints/iter-000004.ipfn",
+        "runs/one/previews/iter-000004.png",
+    ] {
+        assert!(d.join(f).is_file(), "{f} missing");
+    }
+    // synth picks up the newest run's model by default.
+    let out = ipfn(d, &["synth", "--size", "16", "-o", "s.png"]);
+    assert!(
+        stderr(&out).contains("runs/two/latest.ipfn"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+/// Starts a long run and waits until it has written `rows` metrics rows.
+fn start_and_wait(d: &Path, out: &str, rows: usize) -> std::process::Child {
+    let child = Command::new(env!("CARGO_BIN_EXE_ipfn"))
+        .args([
+            "train",
+            "ex.png",
+            "--config",
+            "tiny.toml",
+            "--out",
+            out,
+            "--iterations",
+            "100000",
+        ])
+        .current_dir(d)
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while std::fs::read_to_string(d.join(out).join("metrics.csv"))
+        .map(|s| s.lines().count())
+        .unwrap_or(0)
+        <= rows
+    {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "training made no progress"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child
+}
+
+#[test]
+fn ctrl_c_saves_a_checkpoint_and_exits_130() {
+    let dir = setup();
+    let d = dir.path();
+    let mut child = start_and_wait(d, "run", 3);
+    let pid = child.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &pid])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130));
+    let latest = Checkpoint::load(&d.join("run/latest.ipfn")).unwrap();
+    let it: usize = latest.metadata["iteration"].parse().unwrap();
+    let rows = std::fs::read_to_string(d.join("run/metrics.csv"))
+        .unwrap()
+        .lines()
+        .count()
+        - 1;
+    assert_eq!(it, rows, "the checkpoint holds the last iteration run");
+}
+
+#[test]
+fn kill_9_never_leaves_a_broken_checkpoint() {
+    let dir = setup();
+    let d = dir.path();
+    let mut child = start_and_wait(d, "run", 5);
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    let latest = Checkpoint::load(&d.join("run/latest.ipfn")).expect("latest.ipfn is intact");
+    let it: u64 = latest.metadata["iteration"].parse().unwrap();
+    assert!(
+        it >= 4,
+        "at most one checkpoint interval lost (checkpoint every iteration)"
+    );
+    for entry in std::fs::read_dir(d.join("run/checkpoints"))
+        .unwrap()
+        .flatten()
+    {
+        if entry.path().extension().is_some_and(|e| e == "ipfn") {
+            Checkpoint::load(&entry.path()).expect("every checkpoint is intact");
+        }
+    }
+    let out = ipfn(
+        d,
+        &[
+            "train",
+            "--resume",
+            "run",
+            "--iterations",
+            &(it + 1).to_string(),
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let rows = std::fs::read_to_string(d.join("run/metrics.csv"))
+        .unwrap()
+        .lines()
+        .count()
+        - 1;
+    assert_eq!(
+        rows as u64,
+        it + 1,
+        "rows after the checkpoint were dropped, then the run continued"
+    );
+}
+
+fn assert_error(out: &Output, needles: &[&str]) {
+    let err = stderr(out);
+    assert_eq!(out.status.code(), Some(2), "expected exit 2: {err}");
+    assert_eq!(
+        err.trim_end().lines().count(),
+        1,
+        "expected one line: {err}"
+    );
+    for n in needles {
+        assert!(err.contains(n), "error should mention '{n}': {err}");
+    }
+}
+
+#[test]
+fn bad_training_input_gets_one_line_and_exit_code_2() {
+    let dir = setup();
+    let d = dir.path();
+    assert_error(
+        &ipfn(d, &["train", "ex.png", "--crop", "40"]),
+        &["crop 40", "multiple of 16"],
+    );
+    assert_error(
+        &ipfn(d, &["train", "ex.png", "--crop", "64"]),
+        &["ex.png", "smaller than", "--crop"],
+    );
+    std::fs::write(d.join("bad.toml"), "iterations = 3\nlearning_rate = 0.1\n").unwrap();
+    assert_error(
+        &ipfn(d, &["train", "ex.png", "--config", "bad.toml"]),
+        &["bad.toml", "learning_rate"],
+    );
+    assert_error(
+        &ipfn(d, &["train", "missing.png"]),
+        &["missing.png", "no such file"],
+    );
+    std::fs::write(d.join("broken.png"), b"\x89PNG\r\n\x1a\nnot really").unwrap();
+    assert_error(&ipfn(d, &["train", "broken.png"]), &["broken.png"]);
+    assert_error(
+        &ipfn(d, &["train", "--resume", "nowhere"]),
+        &["nowhere", "latest.ipfn"],
+    );
+    assert_error(
+        &ipfn(d, &["train", "ex.png", "--iterations", "0", "--crop", "16"]),
+        &["iterations"],
+    );
+    let out = ipfn(d, &["train", "ex.png", "--learning-rate", "1"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("--learning-rate"));
+}
+
+#[test]
+fn exemplar_formats_load_with_their_channels() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let gray = image::GrayImage::from_fn(20, 10, |x, _| image::Luma([(x * 12) as u8]));
+    gray.save(d.join("g.png")).unwrap();
+    let rgba16 = image::ImageBuffer::<image::Rgba<u16>, _>::from_fn(8, 8, |x, y| {
+        image::Rgba([x as u16 * 8000, y as u16 * 8000, 65535, 32768])
+    });
+    rgba16.save(d.join("a.png")).unwrap();
+    image::RgbImage::from_fn(8, 8, |_, _| image::Rgb([255, 0, 128]))
+        .save(d.join("c.jpg"))
+        .unwrap();
+    let g = ipfn::io::read_exemplar(&d.join("g.png")).unwrap();
+    assert_eq!((g.width, g.height, g.channels), (20, 10, 1));
+    assert!((g.values[1] - (12.0 / 255.0 * 2.0 - 1.0)).abs() < 1e-6);
+    let a = ipfn::io::read_exemplar(&d.join("a.png")).unwrap();
+    assert_eq!(a.channels, 4);
+    assert!(
+        (a.values[3] - (32768.0 / 65535.0 * 2.0 - 1.0)).abs() < 1e-6,
+        "16-bit precision kept"
+    );
+    let c = ipfn::io::read_exemplar(&d.join("c.jpg")).unwrap();
+    assert_eq!(c.channels, 3);
+    assert!(c.values[0] > 0.9 && c.values[1] < -0.9);
+    let half = a.resized(4, 4);
+    assert_eq!((half.width, half.height, half.channels), (4, 4, 4));
+}
+
+/// Stripes of period 40 pixels across, crop 32: one coordinate unit is 16 pixels, so the
+/// period is 2.5 units and the encoding's base period 2K matches it at K = 1.25 (or any
+/// power-of-two multiple). K starts at 1. Learning must move K across to within 10%, and the
+/// trained critic must find the trained generator closer to the exemplar than the untrained one.
+#[test]
+fn it_learns_the_period_of_stripes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    assert!(
+        ipfn(
+            d,
+            &["draw", "stripes", "--size", "256", "-o", "stripes.png"]
+        )
+        .status
+        .success()
+    );
+    let config = TrainConfig {
+        iterations: 300,
+        batch: 4,
+        crop: 32,
+        lr: 1e-3,
+        critic_widths: vec![16, 32, 64, 128],
+        hidden_layers: 4,
+        width: 32,
+        ..TrainConfig::default()
+    };
+    let device = Device::flex();
+    let mut trainer = Trainer::new(
+        config.clone(),
+        &d.join("stripes.png"),
+        &d.join("run"),
+        &device,
+    )
+    .unwrap();
+    let untrained = trainer.generator().valid();
+    while trainer.iteration < config.iterations {
+        trainer.step();
+    }
+    let k = trainer
+        .generator()
+        .k
+        .val()
+        .try_into_vec_as::<f32>()
+        .unwrap();
+    let target = 1.25f32 * 2f32.powf((k[1] / 1.25).log2().round());
+    assert!(
+        (k[1] / target - 1.0).abs() < 0.10,
+        "K across = {} (true period at {target})",
+        k[1]
+    );
+
+    let critic = trainer.critic().valid();
+    let inner = device.clone();
+    let gap = |g: &ipfn::generator::Generator| {
+        let mut total = 0.0;
+        for s in 0..8u64 {
+            let real = trainer.real_batch(&[1_000_000, s]).inner();
+            let fake = trainer.fake_batch(g, &inner, &[1_000_000, s]);
+            total +=
+                (critic.forward(real).mean() - critic.forward(fake).mean()).into_scalar::<f32>();
+        }
+        total / 8.0
+    };
+    let (w_trained, w_untrained) = (gap(&trainer.generator().valid()), gap(&untrained));
+    eprintln!(
+        "K = {k:?}; Wasserstein estimate: trained {w_trained:.3}, untrained {w_untrained:.3}"
+    );
+    assert!(
+        w_trained < w_untrained,
+        "trained {w_trained} should beat untrained {w_untrained}"
+    );
+}
