@@ -136,7 +136,16 @@ impl Critic {
     /// - output: `[batch, channels, crop, crop]`
     pub fn input_gradient(&self, x: Tensor<4>) -> Tensor<4> {
         let [b, ..] = x.dims();
-        let (_, masks) = self.forward_with_masks(x, true);
+        // The masks need no graph: on an autodiff device compute them on the inner backend.
+        let masks: Vec<Tensor<4>> = if x.device().is_autodiff() {
+            self.valid()
+                .activation_masks(x.inner())
+                .into_iter()
+                .map(Tensor::from_inner)
+                .collect()
+        } else {
+            self.activation_masks(x)
+        };
         let last = masks.last().expect("critic has convolutions");
         let [_, c, s, _] = last.dims();
         // d score / d (last activation) is the head's weight, the same for every sample.
