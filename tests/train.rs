@@ -371,3 +371,46 @@ fn it_learns_the_period_of_stripes() {
         "trained {w_trained} should beat untrained {w_untrained}"
     );
 }
+
+#[test]
+fn trains_on_wgpu() {
+    if common::skip_wgpu() {
+        return;
+    }
+    let dir = setup();
+    let d = dir.path();
+    let out = ipfn(
+        d,
+        &[
+            "train",
+            "ex.png",
+            "--config",
+            "tiny.toml",
+            "--out",
+            "runs/gpu",
+            "--iterations",
+            "2",
+            "--critic-steps",
+            "1",
+            "--generator-steps",
+            "1",
+            "--device",
+            "wgpu",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let latest = Checkpoint::load(&d.join("runs/gpu/latest.ipfn")).unwrap();
+    assert_eq!(latest.metadata["iteration"], "2");
+    let metrics = std::fs::read_to_string(d.join("runs/gpu/metrics.csv")).unwrap();
+    let last: Vec<f32> = metrics
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert!(
+        last.iter().all(|v| v.is_finite()),
+        "finite losses on wgpu: {last:?}"
+    );
+}
