@@ -477,12 +477,13 @@ impl Exemplar {
     /// Resamples to `width x height` with a Lanczos-3 filter (scaled to the output's footprint
     /// when shrinking, so it anti-aliases).
     pub fn resized(&self, width: usize, height: usize) -> Self {
+        // The image crate's float resampling clamps to [0, 1], so resample unit values.
         let c = self.channels;
         let mut rgba = image::Rgba32FImage::new(self.width as u32, self.height as u32);
         for (i, px) in rgba.pixels_mut().enumerate() {
             let mut v = [0f32; 4];
             for (k, slot) in v.iter_mut().enumerate().take(c) {
-                *slot = self.values[i * c + k];
+                *slot = (self.values[i * c + k] + 1.0) * 0.5;
             }
             *px = image::Rgba(v);
         }
@@ -492,21 +493,8 @@ impl Exemplar {
             height as u32,
             image::imageops::FilterType::Lanczos3,
         );
-        let values = out
-            .pixels()
-            .flat_map(|p| {
-                p.0[..c]
-                    .iter()
-                    .map(|v| v.clamp(-1.0, 1.0))
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        Self {
-            width,
-            height,
-            channels: c,
-            values,
-        }
+        let unit: Vec<f32> = out.pixels().flat_map(|p| p.0[..c].to_vec()).collect();
+        Self::from_unit(width, height, c, &unit)
     }
 
     /// A 64-bit fingerprint of the pixels (resume checks that the exemplar did not change).

@@ -414,3 +414,58 @@ fn trains_on_wgpu() {
         "finite losses on wgpu: {last:?}"
     );
 }
+
+/// The critic's fake crops (fused CPU evaluator) equal the generator step's (burn), channel by
+/// channel.
+#[test]
+fn fused_and_burn_fake_crops_agree() {
+    let dir = setup();
+    let config = TrainConfig {
+        batch: 3,
+        crop: 16,
+        critic_widths: vec![4, 8, 8, 8],
+        hidden_layers: 2,
+        width: 16,
+        ..TrainConfig::default()
+    };
+    let device = Device::flex();
+    let trainer = Trainer::new(
+        config,
+        &dir.path().join("ex.png"),
+        &dir.path().join("run"),
+        &device,
+    )
+    .unwrap();
+    let fused = ipfn::generator::fused::FusedGenerator::new(trainer.generator().weights());
+    let a = trainer
+        .fake_batch_fused(&fused, &[1, 2, 3])
+        .inner()
+        .try_into_vec_as::<f32>()
+        .unwrap();
+    let b = trainer
+        .fake_batch(&trainer.generator().valid(), &device, &[1, 2, 3])
+        .try_into_vec_as::<f32>()
+        .unwrap();
+    assert_eq!(a.len(), 3 * 3 * 16 * 16);
+    let diff = common::max_abs_diff(&a, &b);
+    assert!(diff < 1e-5, "fused and burn fakes differ by {diff}");
+}
+
+#[test]
+fn resize_keeps_every_channel() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("exemplars/honeycomb.png");
+    let full = ipfn::train::load_exemplar(&path, 1.0).unwrap();
+    let half = ipfn::train::load_exemplar(&path, 0.5).unwrap();
+    assert_eq!((half.width, half.height, half.channels), (128, 128, 3));
+    for ch in 0..3 {
+        let mean = |e: &ipfn::io::Exemplar| {
+            e.values.iter().skip(ch).step_by(3).sum::<f32>() / (e.width * e.height) as f32
+        };
+        assert!(
+            (mean(&full) - mean(&half)).abs() < 0.02,
+            "channel {ch}: mean {} before, {} after resizing",
+            mean(&full),
+            mean(&half)
+        );
+    }
+}

@@ -663,7 +663,11 @@ impl Trainer {
         );
         state.metadata.insert(
             EXEMPLAR_KEY.into(),
-            self.exemplar_path.to_string_lossy().into_owned(),
+            // Absolute, so that `--resume` works from any folder.
+            std::fs::canonicalize(&self.exemplar_path)
+                .unwrap_or_else(|_| self.exemplar_path.clone())
+                .to_string_lossy()
+                .into_owned(),
         );
         state.metadata.insert(
             FINGERPRINT_KEY.into(),
