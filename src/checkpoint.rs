@@ -318,32 +318,6 @@ pub fn import_pytorch(
     Ok((config, GeneratorWeights { k, octaves, layers }))
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn round_trip_and_corruption() {
-        let mut c = Checkpoint::new();
-        c.metadata.insert("config".into(), "{}".into());
-        c.insert("a", vec![2, 3], (0..6).map(|v| v as f32).collect());
-        let bytes = c.to_bytes();
-        let back = Checkpoint::from_bytes(&bytes, Path::new("m.ipfn")).unwrap();
-        assert_eq!(back.tensors, c.tensors);
-        assert_eq!(back.tensor("a", &[2, 3]).unwrap()[5], 5.0);
-        let err = back.tensor("a", &[3, 2]).unwrap_err().to_string();
-        assert!(
-            err.contains("m.ipfn") && err.contains("another model shape"),
-            "{err}"
-        );
-
-        let truncated = Checkpoint::from_bytes(&bytes[..bytes.len() - 7], Path::new("m.ipfn"));
-        assert!(truncated.unwrap_err().to_string().contains("corrupt"));
-        let garbage = Checkpoint::from_bytes(b"hello world, not a model", Path::new("x.ipfn"));
-        assert!(garbage.unwrap_err().to_string().contains("x.ipfn"));
-    }
-}
-
 /// Stores every float parameter of `module` as `{prefix}.{path}` (e.g. `critic.convs.0.weight`).
 pub fn write_module<M: burn::module::Module>(
     module: &M,
@@ -442,5 +416,31 @@ pub fn read_module<M: burn::module::Module>(
     match load.error {
         Some(e) => Err(e),
         None => Ok(module),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_and_corruption() {
+        let mut c = Checkpoint::new();
+        c.metadata.insert("config".into(), "{}".into());
+        c.insert("a", vec![2, 3], (0..6).map(|v| v as f32).collect());
+        let bytes = c.to_bytes();
+        let back = Checkpoint::from_bytes(&bytes, Path::new("m.ipfn")).unwrap();
+        assert_eq!(back.tensors, c.tensors);
+        assert_eq!(back.tensor("a", &[2, 3]).unwrap()[5], 5.0);
+        let err = back.tensor("a", &[3, 2]).unwrap_err().to_string();
+        assert!(
+            err.contains("m.ipfn") && err.contains("another model shape"),
+            "{err}"
+        );
+
+        let truncated = Checkpoint::from_bytes(&bytes[..bytes.len() - 7], Path::new("m.ipfn"));
+        assert!(truncated.unwrap_err().to_string().contains("corrupt"));
+        let garbage = Checkpoint::from_bytes(b"hello world, not a model", Path::new("x.ipfn"));
+        assert!(garbage.unwrap_err().to_string().contains("x.ipfn"));
     }
 }

@@ -42,7 +42,7 @@ pub enum Command {
     /// Paint a sample of a trained pattern (PNG, EXR or NPY).
     Synth(SynthArgs),
     /// Learn a pattern from one exemplar (PNG, JPEG or EXR): WGAN-GP, checkpoints, previews.
-    Train(TrainArgs),
+    Train(Box<TrainArgs>),
     /// Convert an authors' PyTorch generator (netG.pth) into an ipfn model file.
     Import(ImportArgs),
     /// Draw one of the procedural exemplars (bricks, weave, stripes) to a PNG.
@@ -262,7 +262,7 @@ pub fn run() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Synth(args) => synth(args),
-        Command::Train(args) => train(args),
+        Command::Train(args) => train(*args),
         Command::Import(args) => import(args),
         Command::Draw(args) => draw(args),
     }

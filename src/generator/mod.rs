@@ -47,8 +47,9 @@ pub struct GeneratorConfig {
     /// Latent lattice units per coordinate unit (the authors look the field up at `p / 2`).
     #[config(default = 0.5)]
     pub latent_scale: f32,
-    /// Training crop in pixels; a crop spans 2 coordinate units, so one exemplar pixel is
-    /// `2 / crop` units. Synthesis uses it for the default zoom.
+    /// Exemplar pixels per 2 coordinate units: the training crop, measured in pixels of the
+    /// exemplar as the user gave it (before any `--resize`). One exemplar pixel is `2 / crop`
+    /// units; synthesis at zoom 1 paints at that scale.
     #[config(default = 128)]
     pub crop: usize,
 }

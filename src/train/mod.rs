@@ -122,7 +122,9 @@ impl TrainConfig {
             .with_width(self.width)
             .with_sigma(self.sigma)
             .with_latent_scale(self.latent_scale)
-            .with_crop(self.crop)
+            // The model's pixel is the exemplar's pixel as the user gave it, before --resize,
+            // so `synth` at zoom 1 paints the pattern at the exemplar's own scale.
+            .with_crop(((self.crop as f64) / self.resize).round().max(1.0) as usize)
     }
 
     pub fn critic_config(&self, channels: usize) -> CriticConfig {
@@ -683,7 +685,7 @@ impl Trainer {
     /// Writes `previews/iter-NNNNNN.png`: a fixed-seed sample covering 4x the crop's area.
     pub fn save_preview(&self) -> Result<PathBuf> {
         let (config, weights) = self.model();
-        let side = 2 * self.config.crop;
+        let side = 2 * config.crop; // 4x the crop's area, in the model's pixels
         let painter = Synth::new(config, weights)
             .seed(derive_seed(self.config.seed, &[stream::PREVIEW]))
             .painter()?;
