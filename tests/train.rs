@@ -469,3 +469,22 @@ fn resize_keeps_every_channel() {
         );
     }
 }
+
+/// Every shipped preset parses (unknown keys would be refused), and `default.toml` is what
+/// `ipfn train` uses without `--config`.
+#[test]
+fn shipped_presets_parse() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
+    let read = |name: &str| {
+        let path = dir.join(name);
+        TrainConfig::from_toml(&std::fs::read_to_string(&path).unwrap(), &path).unwrap()
+    };
+    assert_eq!(read("default.toml"), TrainConfig::default());
+    let paper = read("paper.toml");
+    assert_eq!(
+        (paper.iterations, paper.batch, paper.crop),
+        (12_500, 8, 128)
+    );
+    let quick = read("quick.toml");
+    assert!(quick.iterations > 0 && quick.crop.is_multiple_of(16));
+}
