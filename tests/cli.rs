@@ -3,46 +3,11 @@
 mod common;
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-use common::data;
+use common::{assert_error, data, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::generator::GeneratorWeights;
 use ipfn::io::read_npy;
-
-fn ipfn(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ipfn"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("ipfn runs")
-}
-
-/// Asserts a failure with exit code 2 and a single stderr line containing every `needle`.
-fn assert_error(out: &Output, needles: &[&str]) {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(
-        out.status.code(),
-        Some(2),
-        "expected exit code 2, got {:?}; stderr: {stderr}",
-        out.status.code()
-    );
-    assert_eq!(
-        stderr.trim_end().lines().count(),
-        1,
-        "expected one line, got: {stderr}"
-    );
-    for needle in needles {
-        assert!(
-            stderr.contains(needle),
-            "error should mention '{needle}': {stderr}"
-        );
-    }
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 fn decode_png(path: &Path) -> (png::OutputInfo, Vec<u8>) {
     let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));

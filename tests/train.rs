@@ -4,24 +4,13 @@
 mod common;
 
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use burn::prelude::*;
+use common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::train::{TrainConfig, Trainer};
-
-fn ipfn(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ipfn"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("ipfn runs")
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 /// A tiny model and critic so that an iteration takes milliseconds.
 const TINY: &str = r#"
@@ -219,19 +208,6 @@ fn kill_9_never_leaves_a_broken_checkpoint() {
         it + 1,
         "rows after the checkpoint were dropped, then the run continued"
     );
-}
-
-fn assert_error(out: &Output, needles: &[&str]) {
-    let err = stderr(out);
-    assert_eq!(out.status.code(), Some(2), "expected exit 2: {err}");
-    assert_eq!(
-        err.trim_end().lines().count(),
-        1,
-        "expected one line: {err}"
-    );
-    for n in needles {
-        assert!(err.contains(n), "error should mention '{n}': {err}");
-    }
 }
 
 #[test]

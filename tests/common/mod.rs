@@ -1,7 +1,8 @@
 //! Shared test helpers.
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
 use ipfn::synth::DeviceChoice;
 
@@ -64,4 +65,39 @@ pub fn honeycomb() -> (
 
 pub fn all_devices() -> [DeviceChoice; 3] {
     [DeviceChoice::Cpu, DeviceChoice::Flex, DeviceChoice::Wgpu]
+}
+
+/// Runs the `ipfn` binary in `dir`.
+pub fn ipfn(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ipfn"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("ipfn runs")
+}
+
+pub fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Asserts a failure with exit code 2 and a single stderr line containing every `needle`.
+pub fn assert_error(out: &Output, needles: &[&str]) {
+    let err = stderr(out);
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "expected exit code 2, got {:?}; stderr: {err}",
+        out.status.code()
+    );
+    assert_eq!(
+        err.trim_end().lines().count(),
+        1,
+        "expected one line, got: {err}"
+    );
+    for needle in needles {
+        assert!(
+            err.contains(needle),
+            "error should mention '{needle}': {err}"
+        );
+    }
 }
