@@ -12,6 +12,7 @@
 //! - [`synth`]: painting regions and whole images, tileable or not.
 //! - [`checkpoint`]: model files, and import of the authors' PyTorch generators.
 //! - [`io`]: arrays and images in and out, written atomically.
+//! - [`metrics`]: SIFID (Keras InceptionV3 stem), seam score of tiles, dominant periods.
 //! - [`cli`]: the `ipfn` command line.
 
 pub mod checkpoint;
@@ -22,6 +23,7 @@ pub mod error;
 pub mod generator;
 pub mod io;
 pub mod latent;
+pub mod metrics;
 pub mod procedural;
 pub mod sample;
 pub mod synth;

@@ -32,6 +32,8 @@ pub enum DeviceChoice {
     Flex,
     /// burn's wgpu backend (Vulkan, Metal, DX12; lavapipe without a GPU).
     Wgpu,
+    /// burn's CUDA backend (NVIDIA GPUs); needs a build with `--features cuda`.
+    Cuda,
 }
 
 impl FromStr for DeviceChoice {
@@ -41,8 +43,9 @@ impl FromStr for DeviceChoice {
             "cpu" => Ok(Self::Cpu),
             "flex" => Ok(Self::Flex),
             "wgpu" | "gpu" => Ok(Self::Wgpu),
+            "cuda" => Ok(Self::Cuda),
             other => Err(input_error!(
-                "unknown device '{other}'; use cpu, flex or wgpu"
+                "unknown device '{other}'; use cpu, flex, wgpu or cuda"
             )),
         }
     }
@@ -56,8 +59,58 @@ impl DeviceChoice {
             Self::Cpu => Ok(None),
             Self::Flex => Ok(Some(Device::flex())),
             Self::Wgpu => wgpu_device().map(Some),
+            Self::Cuda => cuda_device().map(Some),
         }
     }
+
+    /// The device training uses: flex stands in for the fused CPU path, which has no backward.
+    pub fn training_device(&self) -> Result<Device> {
+        Ok(self.burn_device()?.unwrap_or_else(Device::flex))
+    }
+}
+
+/// The CUDA device, probed once per process with a one-element round trip, so a machine without
+/// a driver or GPU gets an error instead of a panic on first use.
+#[cfg(feature = "cuda")]
+pub fn cuda_device() -> Result<Device> {
+    static DEVICE: std::sync::OnceLock<std::result::Result<Device, String>> =
+        std::sync::OnceLock::new();
+    DEVICE
+        .get_or_init(|| {
+            let hook = std::panic::take_hook();
+            std::panic::set_hook(Box::new(|_| {}));
+            let probe = std::panic::catch_unwind(|| {
+                let device = Device::cuda(0);
+                let one = Tensor::<1>::from_floats([1.0f32].as_slice(), &device);
+                one.try_into_vec_as::<f32>().map(|_| device)
+            });
+            std::panic::set_hook(hook);
+            match probe {
+                Ok(Ok(device)) => Ok(device),
+                Ok(Err(e)) => Err(format!("{e:?}")),
+                Err(panic) => Err(panic
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_else(|| "CUDA initialisation failed".into())
+                    .lines()
+                    .next()
+                    .unwrap_or_default()
+                    .to_string()),
+            }
+        })
+        .clone()
+        .map_err(|e| {
+            input_error!("--device cuda: no usable CUDA device ({e}); check the NVIDIA driver (nvidia-smi) or use --device wgpu or cpu")
+        })
+}
+
+/// Without the `cuda` feature, `--device cuda` says how to get it.
+#[cfg(not(feature = "cuda"))]
+pub fn cuda_device() -> Result<Device> {
+    Err(input_error!(
+        "--device cuda: this ipfn was built without CUDA; reinstall with `cargo install --path . --features cuda`, or use --device wgpu"
+    ))
 }
 
 /// The wgpu device, initialised once per process.
