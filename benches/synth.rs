@@ -3,7 +3,7 @@
 //! `cargo bench --bench synth` prints, for 256², 512² and 1024²:
 //! - ours: `Painter::render` with the fused CPU evaluator (encoding, latent field and MLP);
 //! - burn floor: the same MLP as a chain of plain burn-flex matmuls + ReLU with identical FLOPs
-//!   (chunks of 4096 points, random inputs), the floor named by the design notes;
+//!   (chunks of 65,536 points, random inputs), the floor named by the design notes;
 //! - GEMM floor: the same FLOPs as bare `gemm` calls on all cores (no encoding, no latent, no
 //!   bias), the most the matrix products alone can do here;
 //! - the authors' PyTorch code (21.9 s for 1024² on the 2-core reference machine: measured
@@ -11,102 +11,12 @@
 //!
 //! Medians of `IPFN_BENCH_RUNS` runs (default 3). `IPFN_BENCH_SIZES=256,512` limits the sizes.
 
-use std::time::Instant;
-
-use burn::prelude::*;
-use burn::tensor::activation::relu;
+use ipfn::bench::{gemm_floor, matmul_floor, time};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::generator::GeneratorWeights;
 use ipfn::synth::{DeviceChoice, Synth};
-use rayon::prelude::*;
 
-const AUTHORS_1024_S: f64 = 21.9;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(|a, b| a.partial_cmp(b).unwrap());
-    v[v.len() / 2]
-}
-
-fn time(runs: usize, mut f: impl FnMut()) -> f64 {
-    f(); // warm-up
-    median(
-        (0..runs)
-            .map(|_| {
-                let t = Instant::now();
-                f();
-                t.elapsed().as_secs_f64()
-            })
-            .collect(),
-    )
-}
-
-/// The MLP as plain burn matmuls + ReLU on flex over `points` points, chunks of 4096.
-fn burn_floor(shapes: &[(usize, usize)], points: usize) {
-    let device = Device::flex();
-    let chunk = 4096;
-    let weights: Vec<Tensor<2>> = shapes
-        .iter()
-        .map(|&(i, o)| {
-            Tensor::random(
-                [i, o],
-                burn::tensor::Distribution::Uniform(-0.1, 0.1),
-                &device,
-            )
-        })
-        .collect();
-    let x0 = Tensor::<2>::random(
-        [chunk, shapes[0].0],
-        burn::tensor::Distribution::Uniform(-1.0, 1.0),
-        &device,
-    );
-    let mut done = 0;
-    while done < points {
-        let mut x = x0.clone();
-        for w in &weights {
-            x = relu(x.matmul(w.clone()));
-        }
-        let _ = x.into_data();
-        done += chunk;
-    }
-}
-
-/// The same FLOPs as bare single-threaded GEMMs per 512-point chunk, chunks spread on all cores.
-fn gemm_floor(shapes: &[(usize, usize)], points: usize) {
-    let chunk = 512;
-    let widest = shapes.iter().map(|&(i, o)| i.max(o)).max().unwrap();
-    let weights: Vec<Vec<f32>> = shapes.iter().map(|&(i, o)| vec![0.01; i * o]).collect();
-    (0..points.div_ceil(chunk)).into_par_iter().for_each_init(
-        || (vec![0.5f32; chunk * widest], vec![0f32; chunk * widest]),
-        |(a, b), _| {
-            for (w, &(k, n)) in weights.iter().zip(shapes) {
-                unsafe {
-                    gemm::gemm(
-                        chunk,
-                        n,
-                        k,
-                        b.as_mut_ptr(),
-                        1,
-                        n as isize,
-                        false,
-                        a.as_ptr(),
-                        1,
-                        k as isize,
-                        w.as_ptr(),
-                        1,
-                        n as isize,
-                        0.0,
-                        1.0,
-                        false,
-                        false,
-                        false,
-                        gemm::Parallelism::None,
-                    );
-                }
-                std::mem::swap(a, b);
-            }
-        },
-    );
-}
+const AUTHORS_1024_S: f64 = ipfn::bench::AUTHORS_SYNTH_1024_S;
 
 fn main() {
     let runs: usize = std::env::var("IPFN_BENCH_RUNS")
@@ -145,7 +55,9 @@ fn main() {
         let ours = time(runs, || {
             std::hint::black_box(painter.render(0, 0, n, n));
         });
-        let burn = time(runs, || burn_floor(&shapes, points));
+        let burn = time(runs, || {
+            matmul_floor(&shapes, points, &burn::prelude::Device::flex())
+        });
         let gemm = time(runs, || gemm_floor(&shapes, points));
         let authors = if n == 1024 {
             format!("{AUTHORS_1024_S:.1} s (reference)")

@@ -49,6 +49,25 @@ pub enum Command {
     Draw(DrawArgs),
     /// Score a model against its exemplar (SIFID, seam score, period), or two images (SIFID).
     Eval(EvalArgs),
+    /// Time synthesis and training on this machine's devices, beside floors measured now.
+    Bench(BenchArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// Square sizes to synthesize, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "256,512,1024")]
+    pub sizes: Vec<usize>,
+    /// Devices, comma-separated: cpu, flex, wgpu, cuda. Default: cpu and flex, plus wgpu and
+    /// cuda where they start (wgpu on a software adapter such as lavapipe is slow: name it).
+    #[arg(long, value_delimiter = ',')]
+    pub devices: Option<Vec<String>>,
+    /// Timed runs per figure (the median is printed), after one warm-up run.
+    #[arg(long, default_value_t = 3)]
+    pub runs: usize,
+    /// Skip the training iteration.
+    #[arg(long)]
+    pub no_train: bool,
 }
 
 #[derive(Debug, Args)]
@@ -299,6 +318,7 @@ pub fn run() -> Result<()> {
         Command::Import(args) => import(args),
         Command::Draw(args) => draw(args),
         Command::Eval(args) => eval(args),
+        Command::Bench(args) => bench(args),
     }
 }
 
@@ -364,6 +384,7 @@ pub fn most_recent_model(dir: &Path) -> Option<PathBuf> {
 
 fn synth(args: SynthArgs) -> Result<()> {
     let device: DeviceChoice = args.device.parse()?;
+    device.burn_device()?; // a missing GPU or driver fails here, before any work
     let width = args.width.or(args.size).unwrap_or(512);
     let height = args.height.or(args.size).unwrap_or(512);
     if width == 0 || height == 0 {
@@ -677,6 +698,7 @@ fn eval(args: EvalArgs) -> Result<()> {
         .as_deref()
         .expect("clap requires --exemplar without --images");
     let device: DeviceChoice = args.device.parse()?;
+    device.burn_device()?;
     if args.samples == 0 {
         return Err(input_error!("--samples 0: need at least one sample"));
     }
@@ -729,5 +751,60 @@ fn eval(args: EvalArgs) -> Result<()> {
         fmt_period(r.period_exemplar[1])
     );
     eprintln!("evaluated in {:.2} s", start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn bench(args: BenchArgs) -> Result<()> {
+    use crate::bench;
+    if args.sizes.contains(&0) {
+        return Err(input_error!("--sizes: sizes must be at least 1"));
+    }
+    if args.runs == 0 {
+        return Err(input_error!("--runs 0: need at least one run"));
+    }
+    let devices = match &args.devices {
+        Some(names) => names
+            .iter()
+            .map(|n| {
+                let d: DeviceChoice = n.parse()?;
+                d.burn_device()?; // fail now, with the device's own message
+                Ok(d)
+            })
+            .collect::<Result<Vec<_>>>()?,
+        None => {
+            let mut found = vec![DeviceChoice::Cpu, DeviceChoice::Flex];
+            for gpu in [DeviceChoice::Wgpu, DeviceChoice::Cuda] {
+                match gpu.burn_device() {
+                    Ok(_) if gpu == DeviceChoice::Wgpu && crate::synth::wgpu_is_software() => {
+                        eprintln!(
+                            "wgpu: software adapter only (no GPU); skipped, name it in --devices to time it"
+                        )
+                    }
+                    Ok(_) => found.push(gpu),
+                    Err(e) => eprintln!("{}: skipped ({e})", bench::device_name(gpu)),
+                }
+            }
+            found
+        }
+    };
+    let plan = bench::BenchPlan {
+        sizes: args.sizes.clone(),
+        devices,
+        runs: args.runs,
+        train: !args.no_train,
+    };
+    println!(
+        "ipfn {} bench on {}",
+        env!("CARGO_PKG_VERSION"),
+        bench::machine()
+    );
+    println!(
+        "shipped honeycomb generator (10x128 MLP); medians of {} runs after a warm-up",
+        args.runs
+    );
+    println!();
+    println!("| work | device | ours | floor measured now (or reference) | ours / floor |");
+    println!("|---|---|---|---|---|");
+    bench::run(&plan, |row| println!("{}", row.markdown()))?;
     Ok(())
 }

@@ -13,8 +13,10 @@
 //! - [`checkpoint`]: model files, and import of the authors' PyTorch generators.
 //! - [`io`]: arrays and images in and out, written atomically.
 //! - [`metrics`]: SIFID (Keras InceptionV3 stem), seam score of tiles, dominant periods.
+//! - [`bench`]: `ipfn bench`, speed beside floors measured in the same run.
 //! - [`cli`]: the `ipfn` command line.
 
+pub mod bench;
 pub mod checkpoint;
 pub mod cli;
 pub mod critic;

@@ -69,6 +69,20 @@ impl DeviceChoice {
     }
 }
 
+/// Whether every wgpu adapter on this machine is a software one (lavapipe, WARP): wgpu then
+/// works but runs on the CPU, far slower than `--device cpu`.
+pub fn wgpu_is_software() -> bool {
+    use burn::tensor::wgpu::wgpu;
+    let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle();
+    descriptor.backends = wgpu::Backends::PRIMARY;
+    let instance = wgpu::Instance::new(descriptor);
+    let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::PRIMARY));
+    !adapters.is_empty()
+        && adapters
+            .iter()
+            .all(|a| a.get_info().device_type == wgpu::DeviceType::Cpu)
+}
+
 /// The CUDA device, probed once per process with a one-element round trip, so a machine without
 /// a driver or GPU gets an error instead of a panic on first use.
 #[cfg(feature = "cuda")]

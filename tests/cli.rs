@@ -240,3 +240,58 @@ fn unknown_flags_are_rejected() {
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("--sizee"));
 }
+
+#[test]
+fn bench_prints_ours_beside_a_floor_measured_in_the_same_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = ipfn(
+        dir.path(),
+        &[
+            "bench",
+            "--sizes",
+            "32",
+            "--runs",
+            "1",
+            "--no-train",
+            "--devices",
+            "cpu,flex",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let table = String::from_utf8_lossy(&out.stdout);
+    for (device, floor) in [("cpu", "GEMM floor"), ("flex", "matmul floor")] {
+        let row = table
+            .lines()
+            .find(|l| l.starts_with(&format!("| synth 32² | {device} |")))
+            .unwrap_or_else(|| panic!("no {device} row in:\n{table}"));
+        assert!(row.contains(floor), "{row}");
+        // | work | device | ours | floor | ratio |: the ratio is a positive number.
+        let ratio: f64 = row.split('|').nth(5).unwrap().trim().parse().unwrap();
+        assert!(ratio > 0.0, "{row}");
+    }
+    assert_error(&ipfn(dir.path(), &["bench", "--sizes", "0"]), &["--sizes"]);
+    assert_error(
+        &ipfn(dir.path(), &["bench", "--devices", "tpu"]),
+        &["unknown device", "tpu"],
+    );
+}
+
+/// Without the `cuda` feature, `--device cuda` says how to get it (with it, on a machine
+/// without a driver, it says that instead); never a panic.
+#[test]
+fn device_cuda_without_cuda_is_a_one_line_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = ipfn(
+        dir.path(),
+        &["synth", "--size", "8", "--device", "cuda", "--out", "c.png"],
+    );
+    if cfg!(feature = "cuda") && out.status.success() {
+        return; // a CUDA build on a machine with a GPU
+    }
+    let needle = if cfg!(feature = "cuda") {
+        "no usable CUDA device"
+    } else {
+        "built without CUDA"
+    };
+    assert_error(&out, &["--device cuda", needle]);
+}

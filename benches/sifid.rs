@@ -1,0 +1,174 @@
+//! SIFID regression: train on a shipped exemplar with a fixed seed and budget, evaluate, and
+//! compare with `benches/baselines.toml`. Exits 1, printing both numbers, when SIFID is above the
+//! threshold. `.ci/run` runs the `ci` budget; the `quick` budget (configs/quick.toml as shipped)
+//! runs by hand:
+//!
+//! ```text
+//! cargo bench --bench sifid                            # budget "ci"
+//! IPFN_SIFID_BUDGET=quick cargo bench --bench sifid    # budget "quick"
+//! ```
+//!
+//! Beside our model it evaluates, in the same run, the untrained generator (what no learning
+//! scores) and the IPFN authors' fully trained honeycomb generator (what a full run scores), so
+//! the number can be read without a paper at hand. SIFID here uses the Keras InceptionV3 stem:
+//! not comparable with the paper's torchvision-based values.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use burn::prelude::*;
+use ipfn::generator::{GeneratorConfig, GeneratorWeights};
+use ipfn::metrics::{self, ModelReport};
+use ipfn::synth::DeviceChoice;
+use ipfn::train::{TrainConfig, Trainer};
+
+/// One budget of `benches/baselines.toml`.
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Baseline {
+    /// Training config, relative to the repository root.
+    config: String,
+    /// Exemplar, relative to the repository root.
+    exemplar: String,
+    iterations: u64,
+    seed: u64,
+    /// Samples evaluated (seeds 0..samples).
+    samples: usize,
+    /// SIFID measured when the baseline was set.
+    measured: f64,
+    /// Fail above this.
+    threshold: f64,
+    date: String,
+    command: String,
+    /// Why the threshold is where it is.
+    margin: String,
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn evaluate(
+    config: &GeneratorConfig,
+    weights: &GeneratorWeights,
+    exemplar: &ipfn::io::Exemplar,
+    samples: usize,
+) -> ModelReport {
+    metrics::evaluate_model(config, weights, exemplar, samples, 0, DeviceChoice::Cpu)
+        .expect("evaluation runs")
+}
+
+fn main() {
+    let budget = std::env::var("IPFN_SIFID_BUDGET").unwrap_or_else(|_| "ci".into());
+    let path = root().join("benches/baselines.toml");
+    let text = std::fs::read_to_string(&path).expect("benches/baselines.toml");
+    let baselines: BTreeMap<String, Baseline> =
+        toml::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let Some(base) = baselines.get(&budget) else {
+        eprintln!(
+            "IPFN_SIFID_BUDGET={budget}: no such budget in {}; have {:?}",
+            path.display(),
+            baselines.keys().collect::<Vec<_>>()
+        );
+        std::process::exit(2);
+    };
+    let config_path = root().join(&base.config);
+    let mut config = TrainConfig::from_toml(
+        &std::fs::read_to_string(&config_path).expect("config"),
+        &config_path,
+    )
+    .expect("config parses");
+    config.iterations = base.iterations;
+    config.seed = base.seed;
+    let exemplar_path = root().join(&base.exemplar);
+    let exemplar = ipfn::io::read_exemplar(&exemplar_path).expect("exemplar");
+
+    println!(
+        "SIFID regression, budget '{budget}': {} on {}, {} iterations, seed {}, {} samples at {}x{}",
+        base.config,
+        base.exemplar,
+        base.iterations,
+        base.seed,
+        base.samples,
+        exemplar.width,
+        exemplar.height
+    );
+    let run = tempfile::tempdir().expect("temp dir");
+    let mut trainer =
+        Trainer::new(config, &exemplar_path, run.path(), &Device::flex()).expect("trainer");
+    let (gc, gw) = trainer.model();
+    let untrained = evaluate(&gc, &gw, &exemplar, base.samples);
+
+    let start = Instant::now();
+    for i in 1..=base.iterations {
+        trainer.step();
+        if i % 100 == 0 || i == base.iterations {
+            eprintln!(
+                "  iteration {i}/{}: {:.0} s",
+                base.iterations,
+                start.elapsed().as_secs_f64()
+            );
+        }
+    }
+    let train_s = start.elapsed().as_secs_f64();
+    let (gc, gw) = trainer.model();
+    let ours = evaluate(&gc, &gw, &exemplar, base.samples);
+
+    let mut rows = vec![
+        ("untrained generator (same config, seed)", untrained),
+        ("ours after this budget", ours.clone()),
+    ];
+    if base.exemplar.ends_with("honeycomb.png") {
+        let shipped = ipfn::checkpoint::Checkpoint::from_bytes(
+            ipfn::cli::SHIPPED_HONEYCOMB,
+            Path::new("<shipped honeycomb>"),
+        )
+        .expect("shipped model");
+        let (sc, sw) = GeneratorWeights::read_from(&shipped).expect("shipped model");
+        rows.push((
+            "authors' trained generator (full paper budget)",
+            evaluate(&sc, &sw, &exemplar, base.samples),
+        ));
+    }
+    println!(
+        "\ntrained {} iterations in {train_s:.0} s ({:.2} s/iteration, flex, {} threads)\n",
+        base.iterations,
+        train_s / base.iterations as f64,
+        rayon::current_num_threads()
+    );
+    println!("| model | SIFID mean ± std | / ours | tile seam score | period rows x cols (px) |");
+    println!("|---|---|---|---|---|");
+    for (name, r) in &rows {
+        println!(
+            "| {name} | {:.3} ± {:.3} | {:.2} | {:.3} | {:.1} x {:.1} |",
+            r.sifid.mean,
+            r.sifid.std,
+            r.sifid.mean / ours.sifid.mean,
+            r.seam_model_tile.overall,
+            r.period_model[0],
+            r.period_model[1]
+        );
+    }
+    println!(
+        "\nexemplar period (autocorrelation): {:?} x {:?}; metric: {}",
+        ours.period_exemplar[0].map(|v| (v * 10.0).round() / 10.0),
+        ours.period_exemplar[1].map(|v| (v * 10.0).round() / 10.0),
+        metrics::SIFID_NAME
+    );
+    println!(
+        "baseline: measured {:.3} on {} ({}), threshold {:.3} ({})",
+        base.measured, base.date, base.command, base.threshold, base.margin
+    );
+    if ours.sifid.mean > base.threshold {
+        eprintln!(
+            "SIFID REGRESSION: {:.3} > threshold {:.3} (baseline {:.3} measured {}); find the change that made training worse, do not raise the threshold to pass",
+            ours.sifid.mean, base.threshold, base.measured, base.date
+        );
+        std::process::exit(1);
+    }
+    println!(
+        "ok: SIFID {:.3} <= threshold {:.3}",
+        ours.sifid.mean, base.threshold
+    );
+}

@@ -1,0 +1,259 @@
+//! Speed on the machine at hand (`ipfn bench`), beside floors measured in the same run.
+//!
+//! - synth: `Painter::render` of the shipped honeycomb generator (10x128 MLP) at each size, on
+//!   each device asked for;
+//! - floors, same FLOPs as the MLP, measured now:
+//!   - *GEMM floor* (CPU): bare single-threaded `gemm` calls per 512-point chunk on all cores,
+//!     with no encoding, latent field or bias: the most the matrix products alone can do;
+//!   - *matmul floor* (a burn device): a chain of plain burn matmuls + ReLU on that device, in
+//!     chunks of 65,536 points: what the framework's own kernels do for these shapes;
+//! - training: one iteration (5 critic + 5 generator steps, batch 4, crop 128, a 256² RGB
+//!   exemplar), after one warm-up iteration, beside the authors' PyTorch code measured on the
+//!   2-core reference machine (not re-run here; DESIGN.md).
+//!
+//! The benches in `benches/` print the same figures in more detail.
+
+use std::time::Instant;
+
+use burn::prelude::*;
+use burn::tensor::activation::relu;
+use rayon::prelude::*;
+
+use crate::checkpoint::Checkpoint;
+use crate::error::Result;
+use crate::generator::{GeneratorConfig, GeneratorWeights};
+use crate::synth::{DeviceChoice, Synth};
+use crate::train::{TrainConfig, Trainer};
+
+/// The authors' PyTorch code on the 2-core reference machine (DESIGN.md): synth 1024².
+pub const AUTHORS_SYNTH_1024_S: f64 = 21.9;
+/// The authors' PyTorch code on the 2-core reference machine: one training iteration, batch 4.
+pub const AUTHORS_ITERATION_S: f64 = 40.6;
+
+/// Median of `runs` timed calls after one warm-up call.
+pub fn time(runs: usize, mut f: impl FnMut()) -> f64 {
+    f();
+    let mut v: Vec<f64> = (0..runs.max(1))
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64()
+        })
+        .collect();
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Points per burn call of the matmul floor (as the burn synth path's chunk).
+const FLOOR_CHUNK: usize = 1 << 16;
+
+/// The MLP's FLOPs as a chain of plain burn matmuls + ReLU on `device`, over `points` points
+/// (random inputs; the result is read back so the device has finished).
+pub fn matmul_floor(shapes: &[(usize, usize)], points: usize, device: &Device) {
+    let chunk = FLOOR_CHUNK.min(points);
+    let uniform = burn::tensor::Distribution::Uniform(-0.1, 0.1);
+    let weights: Vec<Tensor<2>> = shapes
+        .iter()
+        .map(|&(i, o)| Tensor::random([i, o], uniform, device))
+        .collect();
+    let x0 = Tensor::<2>::random([chunk, shapes[0].0], uniform, device);
+    let mut done = 0;
+    while done < points {
+        let mut x = x0.clone();
+        for w in &weights {
+            x = relu(x.matmul(w.clone()));
+        }
+        let _ = x.into_data();
+        done += chunk;
+    }
+}
+
+/// The MLP's FLOPs as bare single-threaded GEMMs per 512-point chunk, chunks on all cores.
+pub fn gemm_floor(shapes: &[(usize, usize)], points: usize) {
+    let chunk = 512;
+    let widest = shapes.iter().map(|&(i, o)| i.max(o)).max().unwrap_or(1);
+    let weights: Vec<Vec<f32>> = shapes.iter().map(|&(i, o)| vec![0.01; i * o]).collect();
+    (0..points.div_ceil(chunk)).into_par_iter().for_each_init(
+        || (vec![0.5f32; chunk * widest], vec![0f32; chunk * widest]),
+        |(a, b), _| {
+            for (w, &(k, n)) in weights.iter().zip(shapes) {
+                // SAFETY: a holds chunk x k, w holds k x n, b holds chunk x n f32, row-major.
+                unsafe {
+                    gemm::gemm(
+                        chunk,
+                        n,
+                        k,
+                        b.as_mut_ptr(),
+                        1,
+                        n as isize,
+                        false,
+                        a.as_ptr(),
+                        1,
+                        k as isize,
+                        w.as_ptr(),
+                        1,
+                        n as isize,
+                        0.0,
+                        1.0,
+                        false,
+                        false,
+                        false,
+                        gemm::Parallelism::None,
+                    );
+                }
+                std::mem::swap(a, b);
+            }
+        },
+    );
+}
+
+/// The shipped honeycomb generator (the authors' architecture: 10 hidden layers of 128).
+pub fn shipped_model() -> Result<(GeneratorConfig, GeneratorWeights)> {
+    let shipped = Checkpoint::from_bytes(
+        crate::cli::SHIPPED_HONEYCOMB,
+        std::path::Path::new("<shipped honeycomb>"),
+    )?;
+    GeneratorWeights::read_from(&shipped)
+}
+
+/// One row of the table.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Row {
+    pub work: String,
+    pub device: String,
+    pub ours_s: f64,
+    pub floor: String,
+    pub floor_s: Option<f64>,
+}
+
+impl Row {
+    pub fn markdown(&self) -> String {
+        let (floor, ratio) = match self.floor_s {
+            Some(f) => (
+                format!("{} {f:.3} s", self.floor),
+                format!("{:.2}", self.ours_s / f),
+            ),
+            None => (self.floor.clone(), "-".into()),
+        };
+        format!(
+            "| {} | {} | {:.3} s | {floor} | {ratio} |",
+            self.work, self.device, self.ours_s
+        )
+    }
+}
+
+/// What to measure.
+#[derive(Debug, Clone)]
+pub struct BenchPlan {
+    pub sizes: Vec<usize>,
+    pub devices: Vec<DeviceChoice>,
+    pub runs: usize,
+    /// Also time one training iteration on each device that trains (flex, wgpu, cuda).
+    pub train: bool,
+}
+
+/// Runs the plan, calling `row` as each row is measured.
+pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
+    let (config, weights) = shipped_model()?;
+    let shapes = config.layer_shapes();
+    let mut rows = Vec::new();
+    let mut emit = |r: Row| {
+        row(&r);
+        rows.push(r);
+    };
+    for &device in &plan.devices {
+        let painter = Synth::new(config.clone(), weights.clone())
+            .seed(1)
+            .device(device)
+            .painter()?;
+        let burn_device = device.burn_device()?;
+        for &n in &plan.sizes {
+            let ours = time(plan.runs, || {
+                std::hint::black_box(painter.render(0, 0, n, n));
+            });
+            let (floor, floor_s) = match &burn_device {
+                None => (
+                    "GEMM floor".to_string(),
+                    time(plan.runs, || gemm_floor(&shapes, n * n)),
+                ),
+                Some(d) => (
+                    "matmul floor".to_string(),
+                    time(plan.runs, || matmul_floor(&shapes, n * n, d)),
+                ),
+            };
+            emit(Row {
+                work: format!("synth {n}²"),
+                device: device_name(device),
+                ours_s: ours,
+                floor,
+                floor_s: Some(floor_s),
+            });
+            if n == 1024 && device == DeviceChoice::Cpu {
+                emit(Row {
+                    work: "synth 1024²".into(),
+                    device: "authors' PyTorch (reference machine, not re-run)".into(),
+                    ours_s: AUTHORS_SYNTH_1024_S,
+                    floor: format!("{:.1}x slower than ours", AUTHORS_SYNTH_1024_S / ours),
+                    floor_s: None,
+                });
+            }
+        }
+    }
+    if plan.train {
+        let exemplar = tempfile::Builder::new()
+            .suffix(".png")
+            .tempfile()
+            .map_err(|e| crate::Error::Runtime(format!("temp file: {e}")))?;
+        // A 256x256 RGB exemplar (the speed does not depend on what it shows).
+        let bricks: Vec<f32> = crate::procedural::bricks(256, 256, 32, 16)
+            .iter()
+            .map(|v| v * 2.0 - 1.0)
+            .collect();
+        crate::io::write_png(exemplar.path(), 256, 256, 3, &bricks)?;
+        for &device in &plan.devices {
+            let Some(burn_device) = device.burn_device()? else {
+                continue; // the fused CPU evaluator has no backward; flex trains on the CPU
+            };
+            let run_dir =
+                tempfile::tempdir().map_err(|e| crate::Error::Runtime(format!("temp dir: {e}")))?;
+            let config = TrainConfig {
+                batch: 4,
+                crop: 128,
+                ..TrainConfig::default()
+            };
+            let mut trainer = Trainer::new(config, exemplar.path(), run_dir.path(), &burn_device)?;
+            let ours = time(plan.runs.min(2), || {
+                trainer.step();
+            });
+            emit(Row {
+                work: "train iteration (batch 4, crop 128)".into(),
+                device: device_name(device),
+                ours_s: ours,
+                floor: format!(
+                    "authors' PyTorch {AUTHORS_ITERATION_S:.1} s on the reference machine (not re-run): {:.1}x",
+                    AUTHORS_ITERATION_S / ours
+                ),
+                floor_s: None,
+            });
+        }
+    }
+    Ok(rows)
+}
+
+pub fn device_name(device: DeviceChoice) -> String {
+    format!("{device:?}").to_ascii_lowercase()
+}
+
+/// One line about this machine: CPU model and threads.
+pub fn machine() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|s| s.trim().to_string())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    format!("{cpu}, {} threads", rayon::current_num_threads())
+}
