@@ -3,7 +3,7 @@
 //! `cargo bench --bench synth` prints, for 256², 512² and 1024²:
 //! - ours: `Painter::render` with the fused CPU evaluator (encoding, latent field and MLP);
 //! - burn floor: the same MLP as a chain of plain burn-flex matmuls + ReLU with identical FLOPs
-//!   (chunks of 65,536 points, random inputs), the floor named by the design notes;
+//!   (chunks of 4,096 points, random inputs), the floor named by the design notes;
 //! - GEMM floor: the same FLOPs as bare `gemm` calls on all cores (no encoding, no latent, no
 //!   bias), the most the matrix products alone can do here;
 //! - the authors' PyTorch code (21.9 s for 1024² on the 2-core reference machine: measured

@@ -6,7 +6,8 @@
 //!   - *GEMM floor* (CPU): bare single-threaded `gemm` calls per 512-point chunk on all cores,
 //!     with no encoding, latent field or bias: the most the matrix products alone can do;
 //!   - *matmul floor* (a burn device): a chain of plain burn matmuls + ReLU on that device, in
-//!     chunks of 65,536 points: what the framework's own kernels do for these shapes;
+//!     the chunks our burn path uses there (4,096 points on flex, 65,536 on a GPU): what the
+//!     framework's own kernels do for these shapes;
 //! - training: one iteration (5 critic + 5 generator steps, batch 4, crop 128, a 256² RGB
 //!   exemplar), after one warm-up iteration, beside the authors' PyTorch code measured on the
 //!   2-core reference machine (not re-run here; DESIGN.md).
@@ -44,13 +45,10 @@ pub fn time(runs: usize, mut f: impl FnMut()) -> f64 {
     v[v.len() / 2]
 }
 
-/// Points per burn call of the matmul floor (as the burn synth path's chunk).
-const FLOOR_CHUNK: usize = 1 << 16;
-
-/// The MLP's FLOPs as a chain of plain burn matmuls + ReLU on `device`, over `points` points
-/// (random inputs; the result is read back so the device has finished).
-pub fn matmul_floor(shapes: &[(usize, usize)], points: usize, device: &Device) {
-    let chunk = FLOOR_CHUNK.min(points);
+/// The MLP's FLOPs as a chain of plain burn matmuls + ReLU on `device`, over `points` points in
+/// chunks of `chunk` (random inputs; the result is read back so the device has finished).
+pub fn matmul_floor(shapes: &[(usize, usize)], points: usize, chunk: usize, device: &Device) {
+    let chunk = chunk.min(points);
     let uniform = burn::tensor::Distribution::Uniform(-0.1, 0.1);
     let weights: Vec<Tensor<2>> = shapes
         .iter()
@@ -178,7 +176,9 @@ pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
                 ),
                 Some(d) => (
                     "matmul floor".to_string(),
-                    time(plan.runs, || matmul_floor(&shapes, n * n, d)),
+                    time(plan.runs, || {
+                        matmul_floor(&shapes, n * n, device.chunk_points(), d)
+                    }),
                 ),
             };
             emit(Row {
