@@ -267,6 +267,14 @@ pub struct SynthArgs {
     /// latent lattice wraps. Prints how far K moved.
     #[arg(long)]
     pub tile: bool,
+    /// Make a mirror-symmetric tile: the top-left quarter is painted and reflected about the
+    /// image's centre lines, so the output is symmetric and tiles by plain repetition.
+    #[arg(long, conflicts_with = "tile")]
+    pub mirror: bool,
+    /// Size of the latent noise's cells relative to the pattern, as a multiple of training's:
+    /// above 1, structure varies over larger regions; below 1, over smaller ones.
+    #[arg(long, default_value_t = 1.0, value_name = "S")]
+    pub noise_scale: f64,
     /// Output file: .png (8 or 16 bit), .exr (float) or .npy (raw floats in [-1, 1], [H, W, C]).
     #[arg(long, short, default_value = "synth.png", value_name = "PATH")]
     pub out: PathBuf,
@@ -400,6 +408,12 @@ fn synth(args: SynthArgs) -> Result<()> {
             args.zoom
         ));
     }
+    if !(args.noise_scale.is_finite() && args.noise_scale > 0.0) {
+        return Err(input_error!(
+            "--noise-scale {}: must be a positive number",
+            args.noise_scale
+        ));
+    }
     let model = choose_model(args.model.as_deref(), Path::new("."))?;
     format.check_size(&args.out, width, height, model.config.channels)?;
     let say = |s: String| {
@@ -414,9 +428,13 @@ fn synth(args: SynthArgs) -> Result<()> {
         .seed(args.seed)
         .zoom(args.zoom)
         .offset(x, y)
+        .noise_scale(args.noise_scale)
         .device(device);
     if args.tile {
         builder = builder.tile(width, height);
+    }
+    if args.mirror {
+        builder = builder.mirror(width, height);
     }
     let painter = builder.painter()?;
     if let Some(t) = painter.tile_adjustment() {

@@ -210,6 +210,8 @@ pub struct Synth {
     zoom: f64,
     offset: [i64; 2],
     tile: Option<[usize; 2]>,
+    mirror: Option<[usize; 2]>,
+    noise_scale: f64,
     device: DeviceChoice,
 }
 
@@ -223,6 +225,8 @@ impl Synth {
             zoom: 1.0,
             offset: [0, 0],
             tile: None,
+            mirror: None,
+            noise_scale: 1.0,
             device: DeviceChoice::Cpu,
         }
     }
@@ -251,6 +255,22 @@ impl Synth {
         self
     }
 
+    /// `--mirror`: a mirror-symmetric tile of `width` x `height` pixels. The top-left quarter is
+    /// painted and reflected about the tile's centre lines, so the output is symmetric about
+    /// both and repeats with the tile's period (paper §4.4). The plane outside the tile repeats it.
+    pub fn mirror(mut self, width: usize, height: usize) -> Self {
+        self.mirror = Some([height, width]);
+        self
+    }
+
+    /// `--noise-scale`: the latent lattice's cells are this many times larger relative to the
+    /// pattern's period than in training (paper Fig. 5e): above 1, structure varies over larger
+    /// regions; below 1, over smaller ones. 1 is as trained.
+    pub fn noise_scale(mut self, scale: f64) -> Self {
+        self.noise_scale = scale;
+        self
+    }
+
     /// `--device`.
     pub fn device(mut self, device: DeviceChoice) -> Self {
         self.device = device;
@@ -271,11 +291,21 @@ impl Synth {
                 self.zoom
             ));
         }
+        if !(self.noise_scale.is_finite() && self.noise_scale > 0.0) {
+            return Err(input_error!(
+                "--noise-scale {}: must be a positive number",
+                self.noise_scale
+            ));
+        }
+        if self.mirror.is_some_and(|m| m.contains(&0)) {
+            return Err(input_error!("--mirror: tile size must be at least 1 pixel"));
+        }
         let grid = PixelGrid::new(self.config.crop, self.zoom);
         let mut weights = self.weights;
         let mut field =
             LatentField::hashed(self.seed, 2, self.config.latent_dim).with_sigma(self.config.sigma);
-        let mut latent_scale = vec![self.config.latent_scale; 2];
+        let noise_latent_scale = (self.config.latent_scale as f64 / self.noise_scale) as f32;
+        let mut latent_scale = vec![noise_latent_scale; 2];
         let mut tile = None;
         if let Some(period) = self.tile {
             if period.contains(&0) {
@@ -288,7 +318,7 @@ impl Synth {
                 let k = k_trained[axis] as f64;
                 let cycles = (span / (2.0 * k.abs())).round().max(1.0);
                 weights.k[axis] = (span / (2.0 * cycles)).copysign(k) as f32;
-                let cells = (span * self.config.latent_scale as f64).round().max(1.0);
+                let cells = (span * noise_latent_scale as f64).round().max(1.0);
                 latent_scale[axis] = (cells / span) as f32;
                 lattice_period.push(cells as i64);
             }
@@ -296,7 +326,7 @@ impl Synth {
             tile = Some(TileAdjustment {
                 k_trained,
                 k_used: weights.k.clone(),
-                latent_scale_trained: self.config.latent_scale,
+                latent_scale_trained: noise_latent_scale,
                 latent_scale_used: latent_scale.clone(),
                 lattice_period,
             });
@@ -317,6 +347,7 @@ impl Synth {
             offset: self.offset,
             channels: self.config.channels,
             tile,
+            mirror: self.mirror,
         })
     }
 }
@@ -330,6 +361,14 @@ pub struct Painter {
     offset: [i64; 2],
     channels: usize,
     tile: Option<TileAdjustment>,
+    mirror: Option<[usize; 2]>,
+}
+
+/// Where pixel `i` of a mirror tile of `n` pixels takes its value: the tile repeats, and its
+/// second half reflects the first (`n - 1 - t` for `t >= n / 2`).
+fn mirror_source(i: i64, n: usize) -> i64 {
+    let t = i.rem_euclid(n as i64);
+    t.min(n as i64 - 1 - t)
 }
 
 impl Painter {
@@ -348,7 +387,39 @@ impl Painter {
     /// # Shapes
     /// - output: `[height, width, channels]`, row-major, values in [-1, 1]
     pub fn render(&self, x: i64, y: i64, width: usize, height: usize) -> Vec<f32> {
-        let (y0, x0) = (self.offset[0] + y, self.offset[1] + x);
+        let Some([th, tw]) = self.mirror else {
+            return self.render_plane(self.offset[0] + y, self.offset[1] + x, width, height);
+        };
+        // Mirror: gather from the painted quarter, which starts at the offset.
+        let rows: Vec<i64> = (0..height as i64)
+            .map(|i| mirror_source(y + i, th))
+            .collect();
+        let cols: Vec<i64> = (0..width as i64)
+            .map(|j| mirror_source(x + j, tw))
+            .collect();
+        let (r0, r1) = (
+            *rows.iter().min().unwrap_or(&0),
+            *rows.iter().max().unwrap_or(&0),
+        );
+        let (c0, c1) = (
+            *cols.iter().min().unwrap_or(&0),
+            *cols.iter().max().unwrap_or(&0),
+        );
+        let (bh, bw) = ((r1 - r0 + 1) as usize, (c1 - c0 + 1) as usize);
+        let source = self.render_plane(self.offset[0] + r0, self.offset[1] + c0, bw, bh);
+        let c = self.channels;
+        let mut out = Vec::with_capacity(width * height * c);
+        for &r in &rows {
+            for &col in &cols {
+                let at = ((r - r0) as usize * bw + (col - c0) as usize) * c;
+                out.extend_from_slice(&source[at..at + c]);
+            }
+        }
+        out
+    }
+
+    /// Renders `width x height` pixels whose top-left pixel is `(y0, x0)` in the plane.
+    fn render_plane(&self, y0: i64, x0: i64, width: usize, height: usize) -> Vec<f32> {
         let total = width * height;
         let c = self.channels;
         let mut out = vec![0f32; total * c];

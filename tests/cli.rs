@@ -189,6 +189,12 @@ fn bad_input_gets_one_line_and_exit_code_2() {
     );
     assert_error(&ipfn(d, &["synth", "--size", "3000000000"]), &["too large"]);
     assert_error(&ipfn(d, &["synth", "--zoom", "0"]), &["--zoom"]);
+    assert_error(
+        &ipfn(d, &["synth", "--noise-scale", "-1"]),
+        &["--noise-scale"],
+    );
+    let both = ipfn(d, &["synth", "--tile", "--mirror"]);
+    assert_eq!(both.status.code(), Some(2), "{}", stderr(&both));
     std::fs::write(
         d.join("junk.ipfn"),
         b"\x10\x00\x00\x00\x00\x00\x00\x00{\"a\": trunc",

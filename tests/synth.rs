@@ -146,3 +146,70 @@ test_device!(
     agrees_flex_cpu,
     agrees_wgpu_cpu
 );
+
+#[test]
+fn mirror_tiles_are_symmetric_periodic_and_paint_the_plain_quarter() {
+    let (config, weights) = honeycomb();
+    let (w, h, c) = (37, 24, 3); // an odd width: the centre column is its own mirror
+    let mirrored = Synth::new(config.clone(), weights.clone())
+        .seed(4)
+        .offset(-9, 5)
+        .mirror(w, h)
+        .painter()
+        .unwrap();
+    let tile = mirrored.render(0, 0, w, h);
+    let px = |img: &[f32], x: usize, y: usize| img[(y * w + x) * c..(y * w + x + 1) * c].to_vec();
+    for y in 0..h {
+        for x in 0..w {
+            assert_eq!(
+                px(&tile, x, y),
+                px(&tile, w - 1 - x, y),
+                "left-right at {x},{y}"
+            );
+            assert_eq!(
+                px(&tile, x, y),
+                px(&tile, x, h - 1 - y),
+                "top-bottom at {x},{y}"
+            );
+        }
+    }
+    // The neighbouring tiles repeat it exactly.
+    assert_eq!(mirrored.render(w as i64, 0, w, h), tile);
+    assert_eq!(mirrored.render(0, -(h as i64), w, h), tile);
+    // The quarter is what the plain synthesis paints there.
+    let (qw, qh) = (w.div_ceil(2), h.div_ceil(2));
+    let plain = Synth::new(config, weights)
+        .seed(4)
+        .offset(-9, 5)
+        .painter()
+        .unwrap()
+        .render(0, 0, qw, qh);
+    assert_eq!(window(&tile, w, c, 0, 0, qw, qh), plain);
+}
+
+#[test]
+fn noise_scale_enlarges_the_latent_cells() {
+    let (config, weights) = honeycomb();
+    let render = |config: ipfn::generator::GeneratorConfig, scale: f64| {
+        Synth::new(config, weights.clone())
+            .seed(6)
+            .noise_scale(scale)
+            .painter()
+            .unwrap()
+            .render(0, 0, 48, 40)
+    };
+    let as_trained = render(config.clone(), 1.0);
+    let doubled = render(config.clone(), 2.0);
+    // Scale 2 is the model with latent cells twice as large (half the lattice frequency).
+    let mut coarse = config.clone();
+    coarse.latent_scale /= 2.0;
+    assert_eq!(doubled, render(coarse, 1.0));
+    assert_eq!(as_trained, render(config.clone(), 1.0));
+    assert!(max_abs_diff(&as_trained, &doubled) > 0.05);
+    assert!(
+        Synth::new(config, weights.clone())
+            .noise_scale(0.0)
+            .painter()
+            .is_err()
+    );
+}
