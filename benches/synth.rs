@@ -56,7 +56,7 @@ fn main() {
             std::hint::black_box(painter.render(0, 0, n, n));
         });
         let burn = time(runs, || {
-            matmul_floor(&shapes, points, &burn::prelude::Device::flex())
+            matmul_floor(&shapes, points, 4096, &burn::prelude::Device::flex())
         });
         let gemm = time(runs, || gemm_floor(&shapes, points));
         let authors = if n == 1024 {

@@ -190,7 +190,7 @@ fn bad_input_gets_one_line_and_exit_code_2() {
     assert_error(&ipfn(d, &["synth", "--size", "3000000000"]), &["too large"]);
     assert_error(&ipfn(d, &["synth", "--zoom", "0"]), &["--zoom"]);
     assert_error(
-        &ipfn(d, &["synth", "--noise-scale", "-1"]),
+        &ipfn(d, &["synth", "--noise-scale", "0"]),
         &["--noise-scale"],
     );
     let both = ipfn(d, &["synth", "--tile", "--mirror"]);
