@@ -14,8 +14,9 @@ use crate::error::Result;
 use crate::generator::{GeneratorConfig, GeneratorWeights};
 use crate::input_error;
 use crate::io::OutputFormat;
+use crate::maps::{MapFiles, MapSet};
 use crate::synth::{DEFAULT_BAND_PIXELS, DeviceChoice, Synth};
-use crate::train::{TrainConfig, Trainer};
+use crate::train::{ExemplarSource, TrainConfig, Trainer};
 
 /// The honeycomb generator published by the authors of IPFN (MIT), converted with
 /// `ipfn import`; see `exemplars/README.md`.
@@ -112,8 +113,25 @@ pub struct TrainArgs {
     #[arg(long, short, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Continue the run in DIR from its latest.ipfn, exactly where it stopped.
-    #[arg(long, value_name = "DIR", conflicts_with_all = ["exemplar", "config", "out"])]
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["exemplar", "config", "out", "maps"])]
     pub resume: Option<PathBuf>,
+    /// A material map set instead of one image: aligned maps of one size and bit depth
+    /// (albedo.png,normal.png,roughness.png,height.png), learned together; synth writes one
+    /// file per map, named after these files.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "FILES",
+        conflicts_with = "exemplar"
+    )]
+    pub maps: Option<Vec<PathBuf>>,
+    /// Which maps are normal maps (renormalised to unit length on output), by file stem.
+    /// Default: the maps whose name contains "normal"; pass "" for none.
+    #[arg(long, value_delimiter = ',', value_name = "NAMES", requires = "maps")]
+    pub normal_maps: Option<Vec<String>>,
+    /// Resample maps of another size to the first map's size, and accept mixed bit depths.
+    #[arg(long, requires = "maps")]
+    pub resize_maps: bool,
     /// Where to train: flex (CPU), wgpu (GPU) or cuda (NVIDIA GPU; a build with --features cuda).
     #[arg(long, default_value = "flex")]
     pub device: String,
@@ -226,13 +244,14 @@ impl TrainOverrides {
 
 #[derive(Debug, Args)]
 pub struct DrawArgs {
-    /// bricks (32x16 bricks: period 32 across, 32 down), weave (thread pitch 8: period 16) or
-    /// stripes (period 40 across).
+    /// bricks (32x16 bricks: period 32 across, 32 down), weave (thread pitch 8: period 16),
+    /// stripes (period 40 across), or material: a map set (albedo, normal, roughness, height;
+    /// 16-bit PNGs, period 32) written into the folder --out.
     pub pattern: String,
     /// Width and height in pixels.
     #[arg(long, default_value_t = 256)]
     pub size: usize,
-    /// Output PNG.
+    /// Output PNG (a folder for material).
     #[arg(long, short, value_name = "PATH")]
     pub out: PathBuf,
 }
@@ -278,9 +297,10 @@ pub struct SynthArgs {
     /// Output file: .png (8 or 16 bit), .exr (float) or .npy (raw floats in [-1, 1], [H, W, C]).
     #[arg(long, short, default_value = "synth.png", value_name = "PATH")]
     pub out: PathBuf,
-    /// Bits per channel for PNG output: 8 or 16.
-    #[arg(long, default_value_t = 8)]
-    pub bits: u8,
+    /// Bits per channel for PNG output: 8 or 16. Default 8; a map set's maps keep their
+    /// inputs' depth.
+    #[arg(long)]
+    pub bits: Option<u8>,
     /// Where to run: cpu (fused CPU evaluator), flex (burn CPU backend), wgpu (GPU) or cuda
     /// (NVIDIA GPU; a build with --features cuda).
     #[arg(long, default_value = "cpu")]
@@ -335,6 +355,8 @@ pub struct ChosenModel {
     pub config: GeneratorConfig,
     pub weights: GeneratorWeights,
     pub description: String,
+    /// The maps of a map-set model.
+    pub maps: Option<MapSet>,
 }
 
 /// Loads `--model`, else the most recent model in `dir`, else the shipped honeycomb.
@@ -353,10 +375,22 @@ pub fn choose_model(explicit: Option<&Path>, dir: &Path) -> Result<ChosenModel> 
         },
     };
     let (config, weights) = GeneratorWeights::read_from(&checkpoint)?;
+    let maps = MapSet::read_from(&checkpoint, explicit.unwrap_or(Path::new("model")))?;
+    if let Some(set) = &maps
+        && set.channels() != config.channels
+    {
+        return Err(input_error!(
+            "{}: its map list has {} channels but the generator paints {}",
+            description,
+            set.channels(),
+            config.channels
+        ));
+    }
     Ok(ChosenModel {
         config,
         weights,
         description,
+        maps,
     })
 }
 
@@ -400,7 +434,13 @@ fn synth(args: SynthArgs) -> Result<()> {
             "size {width}x{height}: width and height must be at least 1"
         ));
     }
-    let format = OutputFormat::from_path(&args.out, args.bits)?;
+    if args.bits.is_some_and(|b| b != 8 && b != 16) {
+        return Err(input_error!(
+            "--bits {}: PNG output is 8 or 16 bits per channel",
+            args.bits.unwrap_or_default()
+        ));
+    }
+    let format = OutputFormat::from_path(&args.out, args.bits.unwrap_or(8))?;
     crate::io::check_destination(&args.out)?;
     if !(args.zoom.is_finite() && args.zoom > 0.0) {
         return Err(input_error!(
@@ -415,7 +455,17 @@ fn synth(args: SynthArgs) -> Result<()> {
         ));
     }
     let model = choose_model(args.model.as_deref(), Path::new("."))?;
-    format.check_size(&args.out, width, height, model.config.channels)?;
+    let map_outputs = match &model.maps {
+        Some(set) => {
+            let outputs = set.outputs(&args.out, args.bits)?;
+            crate::maps::check_outputs(&outputs, width, height)?;
+            Some(outputs)
+        }
+        None => {
+            format.check_size(&args.out, width, height, model.config.channels)?;
+            None
+        }
+    };
     let say = |s: String| {
         if !args.quiet {
             eprintln!("{s}");
@@ -453,24 +503,38 @@ fn synth(args: SynthArgs) -> Result<()> {
             );
             bar
         });
-    painter.write_image(
-        &args.out,
-        format,
-        width,
-        height,
-        DEFAULT_BAND_PIXELS,
-        |rows| {
-            if let Some(bar) = &bar {
-                bar.set_position(rows as u64);
-            }
-        },
-    )?;
+    let progress = |rows: usize| {
+        if let Some(bar) = &bar {
+            bar.set_position(rows as u64);
+        }
+    };
+    match &map_outputs {
+        Some(outputs) => {
+            painter.write_maps(outputs, width, height, DEFAULT_BAND_PIXELS, progress)?
+        }
+        None => painter.write_image(
+            &args.out,
+            format,
+            width,
+            height,
+            DEFAULT_BAND_PIXELS,
+            progress,
+        )?,
+    }
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
+    let written = match &map_outputs {
+        Some(outputs) => outputs
+            .iter()
+            .map(|o| o.path.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        None => args.out.display().to_string(),
+    };
     say(format!(
         "wrote {} ({width}x{height}, seed {}, {:?}) in {:.2} s",
-        args.out.display(),
+        written,
         args.seed,
         device,
         start.elapsed().as_secs_f64()
@@ -538,9 +602,19 @@ fn train(args: TrainArgs) -> Result<()> {
             t
         }
         None => {
-            let exemplar = args.exemplar.as_ref().ok_or_else(|| {
-                input_error!("no exemplar given: `ipfn train IMAGE` starts a run, `ipfn train --resume runs/NAME` continues one")
-            })?;
+            let source: ExemplarSource = match (&args.exemplar, &args.maps) {
+                (Some(image), _) => image.into(),
+                (None, Some(files)) => {
+                    MapFiles::new(files.clone(), args.normal_maps.as_deref(), args.resize_maps)?
+                        .into()
+                }
+                (None, None) => {
+                    return Err(input_error!(
+                        "no exemplar given: `ipfn train IMAGE` (or `--maps A.png,B.png,...`) starts a run, `ipfn train --resume runs/NAME` continues one"
+                    ));
+                }
+            };
+            let exemplar = source.main_path().to_path_buf();
             let mut config = match &args.config {
                 Some(path) => {
                     let text = std::fs::read_to_string(path)
@@ -564,7 +638,24 @@ fn train(args: TrainArgs) -> Result<()> {
                     run_dir.display()
                 ));
             }
-            Trainer::new(config, exemplar, &run_dir, &device)?
+            let trainer = Trainer::new(config, source, &run_dir, &device)?;
+            if let Some(maps) = trainer.maps() {
+                let names: Vec<String> = maps
+                    .maps
+                    .iter()
+                    .map(|m| {
+                        format!(
+                            "{} ({} ch, {}-bit{})",
+                            m.name,
+                            m.channels,
+                            m.bits,
+                            if m.normal { ", normal" } else { "" }
+                        )
+                    })
+                    .collect();
+                say(format!("map set: {}", names.join(", ")));
+            }
+            trainer
         }
     };
     trainer.prepare_run_dir()?;
@@ -661,13 +752,36 @@ fn draw(args: DrawArgs) -> Result<()> {
         return Err(input_error!("--size 0: must be at least 1"));
     }
     let n = args.size;
+    if args.pattern == "material" {
+        std::fs::create_dir_all(&args.out)
+            .map_err(|e| input_error!("{}: cannot create folder: {e}", args.out.display()))?;
+        let maps = procedural::material(n, n, 32);
+        for ((name, channels), unit) in procedural::MATERIAL_MAPS.iter().zip(maps) {
+            let path = args.out.join(format!("{name}.png"));
+            let values: Vec<f32> = unit.iter().map(|v| v * 2.0 - 1.0).collect();
+            let mut writer = crate::io::ImageWriter::create(
+                &path,
+                OutputFormat::Png { bits: 16 },
+                n,
+                n,
+                *channels,
+            )?;
+            writer.write_rows(&values)?;
+            writer.finish()?;
+        }
+        eprintln!(
+            "wrote {}/{{albedo,normal,roughness,height}}.png ({n}x{n} 16-bit material)",
+            args.out.display()
+        );
+        return Ok(());
+    }
     let unit = match args.pattern.as_str() {
         "bricks" => procedural::bricks(n, n, 32, 16),
         "weave" => procedural::weave(n, n, 8),
         "stripes" => procedural::stripes(n, n, 40.0),
         other => {
             return Err(input_error!(
-                "unknown pattern '{other}'; use bricks, weave or stripes"
+                "unknown pattern '{other}'; use bricks, weave, stripes or material"
             ));
         }
     };

@@ -511,6 +511,12 @@ impl Exemplar {
 
 /// Reads a PNG (8/16-bit), JPEG or EXR exemplar.
 pub fn read_exemplar(path: &Path) -> Result<Exemplar> {
+    read_exemplar_with_bits(path).map(|(exemplar, _)| exemplar)
+}
+
+/// Reads an exemplar and the bits per channel of its file: 8 or 16 for PNG and JPEG (values
+/// keep that precision as f32), 32 for EXR (float).
+pub fn read_exemplar_with_bits(path: &Path) -> Result<(Exemplar, u8)> {
     if !path.exists() {
         return Err(input_error!("{}: no such file", path.display()));
     }
@@ -519,7 +525,7 @@ pub fn read_exemplar(path: &Path) -> Result<Exemplar> {
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
     if ext == "exr" {
-        return read_exr_exemplar(path);
+        return read_exr_exemplar(path).map(|e| (e, 32));
     }
     let image = image::ImageReader::open(path)
         .and_then(|r| r.with_guessed_format())
@@ -527,6 +533,11 @@ pub fn read_exemplar(path: &Path) -> Result<Exemplar> {
         .decode()
         .map_err(|e| input_error!("{}: not a readable PNG or JPEG image ({e})", path.display()))?;
     let (w, h) = (image.width() as usize, image.height() as usize);
+    let bits = match image.color().bytes_per_pixel() / image.color().channel_count() {
+        1 => 8,
+        2 => 16,
+        _ => 32,
+    };
     use image::ColorType::*;
     let (channels, unit): (usize, Vec<f32>) = match image.color() {
         L8 | L16 => (1, image.to_luma32f().into_raw()),
@@ -543,7 +554,7 @@ pub fn read_exemplar(path: &Path) -> Result<Exemplar> {
     if w == 0 || h == 0 {
         return Err(input_error!("{}: the image is empty", path.display()));
     }
-    Ok(Exemplar::from_unit(w, h, channels, &unit))
+    Ok((Exemplar::from_unit(w, h, channels, &unit), bits))
 }
 
 /// EXR exemplars: channels Y (gray) or R, G, B, optionally A; values expected in [0, 1]

@@ -12,6 +12,7 @@
 //! - [`synth`]: painting regions and whole images, tileable or not.
 //! - [`checkpoint`]: model files, and import of the authors' PyTorch generators.
 //! - [`io`]: arrays and images in and out, written atomically.
+//! - [`maps`]: material map sets (albedo, normal, height, ...) learned and painted together.
 //! - [`metrics`]: SIFID (Keras InceptionV3 stem), seam score of tiles, dominant periods.
 //! - [`bench`]: `ipfn bench`, speed beside floors measured in the same run.
 //! - [`cli`]: the `ipfn` command line.
@@ -25,6 +26,7 @@ pub mod error;
 pub mod generator;
 pub mod io;
 pub mod latent;
+pub mod maps;
 pub mod metrics;
 pub mod procedural;
 pub mod sample;

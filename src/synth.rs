@@ -511,5 +511,47 @@ impl Painter {
     }
 }
 
+impl Painter {
+    /// Writes one file per map of a map set, from bands rendered once for all channels: every
+    /// map shows the same seed and region, aligned exactly. Normal maps are renormalised.
+    pub fn write_maps(
+        &self,
+        outputs: &[crate::maps::MapOutput],
+        width: usize,
+        height: usize,
+        band_pixels: usize,
+        mut progress: impl FnMut(usize),
+    ) -> Result<()> {
+        let c = self.channels;
+        let mut writers = outputs
+            .iter()
+            .map(|o| ImageWriter::create(&o.path, o.format, width, height, o.channels.len()))
+            .collect::<Result<Vec<_>>>()?;
+        let band_rows = (band_pixels / width.max(1)).clamp(1, height);
+        let mut row = 0;
+        while row < height {
+            let rows = band_rows.min(height - row);
+            let band = self.render(0, row as i64, width, rows);
+            for (o, writer) in outputs.iter().zip(writers.iter_mut()) {
+                let mc = o.channels.len();
+                let mut map: Vec<f32> = band
+                    .chunks_exact(c)
+                    .flat_map(|px| px[o.channels.clone()].iter().copied())
+                    .collect();
+                if o.normal {
+                    crate::maps::renormalise(&mut map, mc);
+                }
+                writer.write_rows(&map)?;
+            }
+            row += rows;
+            progress(row);
+        }
+        for writer in writers {
+            writer.finish()?;
+        }
+        Ok(())
+    }
+}
+
 /// Default band size for [`Painter::write_image`]: 1 Mi pixels (12 MiB of RGB floats).
 pub const DEFAULT_BAND_PIXELS: usize = 1 << 20;

@@ -304,7 +304,7 @@ fn it_learns_the_period_of_stripes() {
     let device = Device::flex();
     let mut trainer = Trainer::new(
         config.clone(),
-        &d.join("stripes.png"),
+        d.join("stripes.png"),
         &d.join("run"),
         &device,
     )
@@ -407,7 +407,7 @@ fn fused_and_burn_fake_crops_agree() {
     let device = Device::flex();
     let trainer = Trainer::new(
         config,
-        &dir.path().join("ex.png"),
+        dir.path().join("ex.png"),
         &dir.path().join("run"),
         &device,
     )

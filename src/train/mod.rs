@@ -25,6 +25,7 @@ use crate::generator::{Generator, GeneratorConfig, GeneratorWeights};
 use crate::input_error;
 use crate::io::{Exemplar, write_png};
 use crate::latent::{LatentField, derive_seed, mix64};
+use crate::maps::{MapFiles, MapSet};
 use crate::synth::Synth;
 use adam::Adam;
 
@@ -275,7 +276,9 @@ pub struct StepTimes {
 pub struct Trainer {
     pub config: TrainConfig,
     exemplar: Exemplar,
-    exemplar_path: PathBuf,
+    source: ExemplarSource,
+    /// The maps of a map-set exemplar (stored in every model file, so synth writes one file each).
+    maps: Option<MapSet>,
     run_dir: PathBuf,
     device: Device,
     generator: Generator,
@@ -295,7 +298,10 @@ const CRITIC_CONFIG_KEY: &str = "critic_config";
 
 /// Loads the exemplar and applies the config's resize.
 pub fn load_exemplar(path: &Path, resize: f64) -> Result<Exemplar> {
-    let exemplar = crate::io::read_exemplar(path)?;
+    apply_resize(crate::io::read_exemplar(path)?, resize)
+}
+
+fn apply_resize(exemplar: Exemplar, resize: f64) -> Result<Exemplar> {
     if resize == 1.0 {
         return Ok(exemplar);
     }
@@ -304,16 +310,96 @@ pub fn load_exemplar(path: &Path, resize: f64) -> Result<Exemplar> {
     Ok(exemplar.resized(w, h))
 }
 
+/// What a run learns from: one image, or a set of aligned material maps.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ExemplarSource {
+    Image(PathBuf),
+    Maps(MapFiles),
+}
+
+impl From<&Path> for ExemplarSource {
+    fn from(p: &Path) -> Self {
+        Self::Image(p.to_path_buf())
+    }
+}
+
+impl From<&PathBuf> for ExemplarSource {
+    fn from(p: &PathBuf) -> Self {
+        Self::Image(p.clone())
+    }
+}
+
+impl From<PathBuf> for ExemplarSource {
+    fn from(p: PathBuf) -> Self {
+        Self::Image(p)
+    }
+}
+
+impl From<MapFiles> for ExemplarSource {
+    fn from(m: MapFiles) -> Self {
+        Self::Maps(m)
+    }
+}
+
+impl ExemplarSource {
+    /// Reads the exemplar (stacking a map set's channels) and applies the config's resize.
+    pub fn load(&self, resize: f64) -> Result<(Exemplar, Option<MapSet>)> {
+        match self {
+            Self::Image(path) => Ok((load_exemplar(path, resize)?, None)),
+            Self::Maps(files) => {
+                let (exemplar, set) = files.load()?;
+                Ok((apply_resize(exemplar, resize)?, Some(set)))
+            }
+        }
+    }
+
+    /// The file that names the exemplar in messages (a set's first map).
+    pub fn main_path(&self) -> &Path {
+        match self {
+            Self::Image(path) => path,
+            Self::Maps(files) => &files.files[0],
+        }
+    }
+
+    /// For the run's checkpoint: absolute paths, so `--resume` works from any folder. A single
+    /// image is its path; a map set is JSON.
+    fn to_meta(&self) -> String {
+        let absolute = |p: &PathBuf| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        match self {
+            Self::Image(path) => absolute(path).to_string_lossy().into_owned(),
+            Self::Maps(files) => serde_json::to_string(&MapFiles {
+                files: files.files.iter().map(absolute).collect(),
+                ..files.clone()
+            })
+            .expect("the map files serialise"),
+        }
+    }
+
+    fn from_meta(meta: &str, checkpoint: &Path) -> Result<Self> {
+        if meta.starts_with('{') {
+            serde_json::from_str(meta).map(Self::Maps).map_err(|e| {
+                input_error!(
+                    "{}: unreadable exemplar map list ({e})",
+                    checkpoint.display()
+                )
+            })
+        } else {
+            Ok(Self::Image(PathBuf::from(meta)))
+        }
+    }
+}
+
 impl Trainer {
     /// A fresh run. `device` is a plain device (flex or wgpu); training uses its autodiff form.
     pub fn new(
         config: TrainConfig,
-        exemplar_path: &Path,
+        source: impl Into<ExemplarSource>,
         run_dir: &Path,
         device: &Device,
     ) -> Result<Self> {
-        let exemplar = load_exemplar(exemplar_path, config.resize)?;
-        config.validate(&exemplar, exemplar_path)?;
+        let source = source.into();
+        let (exemplar, maps) = source.load(config.resize)?;
+        config.validate(&exemplar, source.main_path())?;
         let device = device.clone().autodiff();
         let generator = initialise(
             config.generator_config(exemplar.channels).init(&device),
@@ -330,7 +416,8 @@ impl Trainer {
             adam_critic: Adam::new(config.lr, config.beta1, config.beta2),
             config,
             exemplar,
-            exemplar_path: exemplar_path.to_path_buf(),
+            source,
+            maps,
             run_dir: run_dir.to_path_buf(),
             device,
             generator,
@@ -354,15 +441,15 @@ impl Trainer {
         if let Some(n) = iterations {
             config.iterations = n;
         }
-        let exemplar_path = PathBuf::from(ckpt.meta(EXEMPLAR_KEY)?);
-        let exemplar = load_exemplar(&exemplar_path, config.resize)?;
+        let source = ExemplarSource::from_meta(ckpt.meta(EXEMPLAR_KEY)?, &latest)?;
+        let (exemplar, maps) = source.load(config.resize)?;
         if ckpt.meta(FINGERPRINT_KEY)? != exemplar.fingerprint().to_string() {
             return Err(input_error!(
                 "{}: the exemplar changed since this run started; start a new run instead of resuming",
-                exemplar_path.display()
+                source.main_path().display()
             ));
         }
-        config.validate(&exemplar, &exemplar_path)?;
+        config.validate(&exemplar, source.main_path())?;
         let device = device.clone().autodiff();
         let (gen_config, weights) = GeneratorWeights::read_from(&ckpt)?;
         if gen_config != config.generator_config(exemplar.channels) {
@@ -388,7 +475,8 @@ impl Trainer {
         Ok(Self {
             config,
             exemplar,
-            exemplar_path,
+            source,
+            maps,
             run_dir: run_dir.to_path_buf(),
             device,
             generator,
@@ -397,6 +485,11 @@ impl Trainer {
             adam_critic,
             iteration,
         })
+    }
+
+    /// The maps of a map-set run.
+    pub fn maps(&self) -> Option<&MapSet> {
+        self.maps.as_ref()
     }
 
     pub fn run_dir(&self) -> &Path {
@@ -651,6 +744,9 @@ impl Trainer {
         model
             .metadata
             .insert(ITERATION_KEY.into(), self.iteration.to_string());
+        if let Some(maps) = &self.maps {
+            maps.write_to(&mut model);
+        }
         let dir = self.run_dir.join("checkpoints");
         std::fs::create_dir_all(&dir)
             .map_err(|e| Error::Runtime(format!("{}: cannot create: {e}", dir.display())))?;
@@ -663,14 +759,9 @@ impl Trainer {
             CRITIC_CONFIG_KEY.into(),
             serde_json::to_string(&critic_config).expect("serialises"),
         );
-        state.metadata.insert(
-            EXEMPLAR_KEY.into(),
-            // Absolute, so that `--resume` works from any folder.
-            std::fs::canonicalize(&self.exemplar_path)
-                .unwrap_or_else(|_| self.exemplar_path.clone())
-                .to_string_lossy()
-                .into_owned(),
-        );
+        state
+            .metadata
+            .insert(EXEMPLAR_KEY.into(), self.source.to_meta());
         state.metadata.insert(
             FINGERPRINT_KEY.into(),
             self.exemplar.fingerprint().to_string(),
@@ -699,7 +790,14 @@ impl Trainer {
         std::fs::create_dir_all(&dir)
             .map_err(|e| Error::Runtime(format!("{}: cannot create: {e}", dir.display())))?;
         let path = dir.join(format!("iter-{:06}.png", self.iteration));
-        write_png(&path, side, side, self.exemplar.channels, &pixels)?;
+        // A map set previews its first map.
+        let c = self.exemplar.channels;
+        let shown = self.maps.as_ref().map_or(0..c, |m| m.ranges()[0].clone());
+        let pixels: Vec<f32> = pixels
+            .chunks_exact(c)
+            .flat_map(|px| px[shown.clone()].iter().copied())
+            .collect();
+        write_png(&path, side, side, shown.len(), &pixels)?;
         Ok(path)
     }
 

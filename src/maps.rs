@@ -1,0 +1,286 @@
+//! Material map sets: several aligned maps (albedo, normal, roughness, height, ...) learned as one
+//! exemplar with their channels stacked, and painted back as one file per map.
+//!
+//! Alignment is exact by construction: one generator paints all channels of a pixel in one
+//! evaluation, and the maps are cut from that evaluation.
+
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::checkpoint::Checkpoint;
+use crate::error::Result;
+use crate::input_error;
+use crate::io::{Exemplar, OutputFormat};
+
+/// Checkpoint metadata key holding the [`MapSet`] (JSON) of a map-set model.
+pub const MAPS_KEY: &str = "maps";
+
+/// One map of a set.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapInfo {
+    /// The input file's stem (`normal` for `normal.png`): outputs are named after it.
+    pub name: String,
+    pub channels: usize,
+    /// Bits per channel of the input: 8 or 16 (PNG, JPEG) or 32 (EXR, float).
+    pub bits: u8,
+    /// A normal map: its first three channels are a vector, renormalised to unit length on output.
+    pub normal: bool,
+}
+
+/// The maps of a set, in channel order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapSet {
+    pub maps: Vec<MapInfo>,
+}
+
+impl MapSet {
+    /// Total channels.
+    pub fn channels(&self) -> usize {
+        self.maps.iter().map(|m| m.channels).sum()
+    }
+
+    /// Each map's channels within the stacked pixel.
+    pub fn ranges(&self) -> Vec<Range<usize>> {
+        let mut start = 0;
+        self.maps
+            .iter()
+            .map(|m| {
+                start += m.channels;
+                start - m.channels..start
+            })
+            .collect()
+    }
+
+    /// The set stored in a model file, if it is a map-set model.
+    pub fn read_from(checkpoint: &Checkpoint, path: &Path) -> Result<Option<Self>> {
+        let Some(json) = checkpoint.metadata.get(MAPS_KEY) else {
+            return Ok(None);
+        };
+        serde_json::from_str(json)
+            .map(Some)
+            .map_err(|e| input_error!("{}: unreadable map list ({e})", path.display()))
+    }
+
+    pub fn write_to(&self, checkpoint: &mut Checkpoint) {
+        checkpoint.metadata.insert(
+            MAPS_KEY.into(),
+            serde_json::to_string(self).expect("the map list serialises"),
+        );
+    }
+
+    /// One output per map: `<out stem>-<map name>.<ext>`. With a `.png` `out`, each map keeps its
+    /// input's precision: 8- or 16-bit PNG (`bits` overrides), and float maps go to `.exr`.
+    pub fn outputs(&self, out: &Path, bits: Option<u8>) -> Result<Vec<MapOutput>> {
+        let stem = out
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "synth".into());
+        let dir = out.parent().unwrap_or(Path::new(""));
+        let format = OutputFormat::from_path(out, bits.unwrap_or(8))?;
+        self.maps
+            .iter()
+            .zip(self.ranges())
+            .map(|(map, range)| {
+                let (format, ext) = match format {
+                    OutputFormat::Png { .. } if map.bits > 16 => (OutputFormat::Exr, "exr"),
+                    OutputFormat::Png { .. } => (
+                        OutputFormat::Png {
+                            bits: bits.unwrap_or(map.bits),
+                        },
+                        "png",
+                    ),
+                    OutputFormat::Exr => (OutputFormat::Exr, "exr"),
+                    OutputFormat::Npy => (OutputFormat::Npy, "npy"),
+                };
+                Ok(MapOutput {
+                    path: dir.join(format!("{stem}-{}.{ext}", map.name)),
+                    format,
+                    channels: range,
+                    normal: map.normal,
+                })
+            })
+            .collect()
+    }
+}
+
+/// Where one map of a synthesis goes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapOutput {
+    pub path: PathBuf,
+    pub format: OutputFormat,
+    /// The map's channels within the stacked pixel.
+    pub channels: Range<usize>,
+    pub normal: bool,
+}
+
+/// Rescales the first three channels of every pixel (`[.., channels]`, values in [-1, 1]) to unit
+/// length; a zero vector becomes (0, 0, 1).
+pub fn renormalise(values: &mut [f32], channels: usize) {
+    if channels < 3 {
+        return;
+    }
+    for px in values.chunks_exact_mut(channels) {
+        let len = (px[0] * px[0] + px[1] * px[1] + px[2] * px[2]).sqrt();
+        if len > 1e-12 {
+            px[..3].iter_mut().for_each(|v| *v /= len);
+        } else {
+            px[..3].copy_from_slice(&[0.0, 0.0, 1.0]);
+        }
+    }
+}
+
+/// The files of a map set and which of them are normal maps.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapFiles {
+    pub files: Vec<PathBuf>,
+    pub normal: Vec<bool>,
+    /// Resample maps to the first map's size (and read any bit depth) instead of refusing them.
+    pub resample: bool,
+}
+
+impl MapFiles {
+    /// `normal_names`: the stems of the normal maps; `None` picks those whose stem contains
+    /// "normal".
+    pub fn new(
+        files: Vec<PathBuf>,
+        normal_names: Option<&[String]>,
+        resample: bool,
+    ) -> Result<Self> {
+        if files.len() < 2 {
+            return Err(input_error!(
+                "--maps needs at least two files (a single image trains as a plain exemplar)"
+            ));
+        }
+        let stems: Vec<String> = files.iter().map(|f| stem(f)).collect();
+        for (i, s) in stems.iter().enumerate() {
+            if stems[..i].contains(s) {
+                return Err(input_error!(
+                    "--maps: two maps are named '{s}'; outputs are named after the files, so give each a different name"
+                ));
+            }
+        }
+        if let Some(names) = normal_names {
+            for n in names.iter().filter(|n| !n.is_empty()) {
+                if !stems.contains(n) {
+                    return Err(input_error!(
+                        "--normal-maps {n}: no map of that name; the maps are {}",
+                        stems.join(", ")
+                    ));
+                }
+            }
+        }
+        let normal = stems
+            .iter()
+            .map(|s| match normal_names {
+                Some(names) => names.contains(s),
+                None => s.to_ascii_lowercase().contains("normal"),
+            })
+            .collect();
+        Ok(Self {
+            files,
+            normal,
+            resample,
+        })
+    }
+
+    /// Reads the maps, checks that they agree in size and bit depth (or resamples them to the
+    /// first map's size when `resample` is set), and stacks their channels.
+    pub fn load(&self) -> Result<(Exemplar, MapSet)> {
+        let mut maps = Vec::new();
+        let mut images: Vec<Exemplar> = Vec::new();
+        for (file, &normal) in self.files.iter().zip(&self.normal) {
+            let (mut image, bits) = crate::io::read_exemplar_with_bits(file)?;
+            if let Some(first) = images.first() {
+                let (w, h, b) = (first.width, first.height, maps_bits(&maps));
+                if (image.width, image.height) != (w, h) {
+                    if !self.resample {
+                        return Err(input_error!(
+                            "{}: {}x{}, but {} is {w}x{h}; maps must be the same size (or pass --resize-maps to resample them)",
+                            file.display(),
+                            image.width,
+                            image.height,
+                            self.files[0].display()
+                        ));
+                    }
+                    image = image.resized(w, h);
+                }
+                if bits != b && !self.resample {
+                    return Err(input_error!(
+                        "{}: {bits}-bit, but {} is {b}-bit; maps must have one bit depth (or pass --resize-maps to accept mixed depths)",
+                        file.display(),
+                        self.files[0].display()
+                    ));
+                }
+            }
+            if normal && image.channels < 3 {
+                return Err(input_error!(
+                    "{}: a normal map needs 3 channels, this one has {}",
+                    file.display(),
+                    image.channels
+                ));
+            }
+            maps.push(MapInfo {
+                name: stem(file),
+                channels: image.channels,
+                bits,
+                normal,
+            });
+            images.push(image);
+        }
+        Ok((stack(&images), MapSet { maps }))
+    }
+
+    /// A short name for messages: the first file and how many more.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} (+{} maps)",
+            self.files[0].display(),
+            self.files.len() - 1
+        )
+    }
+}
+
+fn maps_bits(maps: &[MapInfo]) -> u8 {
+    maps.first().map_or(8, |m| m.bits)
+}
+
+fn stem(path: &Path) -> String {
+    path.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "map".into())
+}
+
+/// Stacks same-size images channel-wise: pixel by pixel, the first image's channels, then the
+/// second's, ...
+pub fn stack(images: &[Exemplar]) -> Exemplar {
+    let (w, h) = (images[0].width, images[0].height);
+    let channels: usize = images.iter().map(|i| i.channels).sum();
+    let mut values = Vec::with_capacity(w * h * channels);
+    for p in 0..w * h {
+        for image in images {
+            let c = image.channels;
+            values.extend_from_slice(&image.values[p * c..(p + 1) * c]);
+        }
+    }
+    Exemplar {
+        width: w,
+        height: h,
+        channels,
+        values,
+    }
+}
+
+/// Checks every output's folder and size before any work.
+pub fn check_outputs(outputs: &[MapOutput], width: usize, height: usize) -> Result<()> {
+    for o in outputs {
+        crate::io::check_destination(&o.path)?;
+        o.format
+            .check_size(&o.path, width, height, o.channels.len())?;
+    }
+    Ok(())
+}
