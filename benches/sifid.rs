@@ -57,8 +57,15 @@ fn evaluate(
     samples: usize,
     first_seed: u64,
 ) -> ModelReport {
-    metrics::evaluate_model(config, weights, exemplar, samples, first_seed, DeviceChoice::Cpu)
-        .expect("evaluation runs")
+    metrics::evaluate_model(
+        config,
+        weights,
+        exemplar,
+        samples,
+        first_seed,
+        DeviceChoice::Cpu,
+    )
+    .expect("evaluation runs")
 }
 
 fn main() {

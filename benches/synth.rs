@@ -9,6 +9,8 @@
 //! - the authors' PyTorch code (21.9 s for 1024² on the 2-core reference machine: measured
 //!   separately, see DESIGN.md; not re-run here).
 //!
+//! A second table times 1, 3 and 9 output channels (a material map set) at the largest size.
+//!
 //! Medians of `IPFN_BENCH_RUNS` runs (default 3). `IPFN_BENCH_SIZES=256,512` limits the sizes.
 
 use ipfn::bench::{gemm_floor, matmul_floor, time};
@@ -34,6 +36,7 @@ fn main() {
     .unwrap();
     let (config, weights) = GeneratorWeights::read_from(&shipped).unwrap();
     let shapes = config.layer_shapes();
+    let base_config = config.clone();
     let flop_per_point = 2.0 * config.macs_per_point() as f64;
     let painter = Synth::new(config, weights)
         .seed(1)
@@ -76,6 +79,43 @@ fn main() {
             gflop / gemm,
             ours / gemm,
             gflop / ours
+        );
+    }
+
+    // Channels: a map set paints more channels with the same MLP; only the last layer grows.
+    // Same architecture, random weights, 1, 3 and 9 output channels (3 is the honeycomb's shape).
+    let n = *sizes.last().unwrap_or(&1024);
+    println!();
+    println!("channels at {n}² (same 10x128 MLP, random weights), median of {runs} runs");
+    println!("| channels | ours | / 3 channels | MACs per point | / 3 channels |");
+    println!("|---|---|---|---|---|");
+    let time_channels = |channels: usize| {
+        let config = ipfn::generator::GeneratorConfig {
+            channels,
+            ..base_config.clone()
+        };
+        let macs = config.macs_per_point();
+        let painter = Synth::new(config.clone(), GeneratorWeights::random(&config))
+            .seed(1)
+            .device(DeviceChoice::Cpu)
+            .painter()
+            .unwrap();
+        let t = time(runs, || {
+            std::hint::black_box(painter.render(0, 0, n, n));
+        });
+        (t, macs)
+    };
+    let (t3, m3) = time_channels(3);
+    for channels in [1, 3, 9] {
+        let (t, m) = if channels == 3 {
+            (t3, m3)
+        } else {
+            time_channels(channels)
+        };
+        println!(
+            "| {channels} | {t:.3} s | {:.3} | {m} | {:.3} |",
+            t / t3,
+            m as f64 / m3 as f64
         );
     }
 }

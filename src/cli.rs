@@ -193,11 +193,18 @@ pub struct TrainOverrides {
     /// Generator: units per hidden layer.
     #[arg(long)]
     pub width: Option<usize>,
+    /// Directional guidance (conditional IPFN): x, y, -x, -y or a,b,c, for g = a·x + b·y + c
+    /// over the exemplar (x, y in [-1, 1]). The model then needs --guide in synth.
+    #[arg(long, value_name = "LINE", allow_hyphen_values = true)]
+    pub guide: Option<String>,
 }
 
 impl TrainOverrides {
     /// Applies the flags to `config`.
     pub fn apply(&self, c: &mut TrainConfig) {
+        if let Some(g) = &self.guide {
+            c.guide = Some(g.clone());
+        }
         macro_rules! set {
             ($($f:ident),*) => { $( if let Some(v) = self.$f.clone() { c.$f = v; } )* };
         }
@@ -236,7 +243,8 @@ impl TrainOverrides {
             octaves,
             latent_dim,
             hidden_layers,
-            width
+            width,
+            guide
         );
         v
     }
@@ -245,8 +253,9 @@ impl TrainOverrides {
 #[derive(Debug, Args)]
 pub struct DrawArgs {
     /// bricks (32x16 bricks: period 32 across, 32 down), weave (thread pitch 8: period 16),
-    /// stripes (period 40 across), or material: a map set (albedo, normal, roughness, height;
-    /// 16-bit PNGs, period 32) written into the folder --out.
+    /// stripes (period 40 across), graded (16 px stripes whose bright part grows from 15% of
+    /// the period at the left to 85% at the right: for --guide x), or material: a map set (albedo, normal, roughness,
+    /// height; 16-bit PNGs, period 32) written into the folder --out.
     pub pattern: String,
     /// Width and height in pixels.
     #[arg(long, default_value_t = 256)]
@@ -294,6 +303,10 @@ pub struct SynthArgs {
     /// above 1, structure varies over larger regions; below 1, over smaller ones.
     #[arg(long, default_value_t = 1.0, value_name = "S")]
     pub noise_scale: f64,
+    /// Guidance for a guided model: x, y, -x, -y, a line a,b,c (g = a·x + b·y + c over the
+    /// output, x and y in [-1, 1]), or a grayscale image of the output's size (g = 2v - 1).
+    #[arg(long, value_name = "LINE|IMAGE", allow_hyphen_values = true)]
+    pub guide: Option<String>,
     /// Output file: .png (8 or 16 bit), .exr (float) or .npy (raw floats in [-1, 1], [H, W, C]).
     #[arg(long, short, default_value = "synth.png", value_name = "PATH")]
     pub out: PathBuf,
@@ -471,7 +484,7 @@ fn synth(args: SynthArgs) -> Result<()> {
             eprintln!("{s}");
         }
     };
-    say(format!("model: {}", model.description));
+    let description = model.description.clone();
 
     let (x, y) = args.offset.unwrap_or((0, 0));
     let mut builder = Synth::new(model.config, model.weights)
@@ -486,7 +499,11 @@ fn synth(args: SynthArgs) -> Result<()> {
     if args.mirror {
         builder = builder.mirror(width, height);
     }
+    if let Some(g) = &args.guide {
+        builder = builder.guide(crate::guidance::Guide::parse_flag(g)?, width, height);
+    }
     let painter = builder.painter()?;
+    say(format!("model: {description}"));
     if let Some(t) = painter.tile_adjustment() {
         say(t.describe());
     }
@@ -779,9 +796,10 @@ fn draw(args: DrawArgs) -> Result<()> {
         "bricks" => procedural::bricks(n, n, 32, 16),
         "weave" => procedural::weave(n, n, 8),
         "stripes" => procedural::stripes(n, n, 40.0),
+        "graded" => procedural::graded_stripes(n, n, 16.0, 0.15, 0.85),
         other => {
             return Err(input_error!(
-                "unknown pattern '{other}'; use bricks, weave, stripes or material"
+                "unknown pattern '{other}'; use bricks, weave, stripes, graded or material"
             ));
         }
     };

@@ -5,6 +5,7 @@
 //! - [`encoding`]: the periodic sin/cos encoding of `p / K`.
 //! - [`latent`]: the infinite, deterministic latent random field.
 //! - [`generator`]: the MLP generator (a burn module, and a fused CPU evaluator).
+//! - [`guidance`]: directional guidance (conditional IPFN): a guidance channel `g`.
 //! - [`critic`]: the critic, with its exact input gradient for the gradient penalty.
 //! - [`train`]: WGAN-GP training, checkpoints and resume.
 //! - [`sample`]: coordinate grids of pixels.
@@ -24,6 +25,7 @@ pub mod critic;
 pub mod encoding;
 pub mod error;
 pub mod generator;
+pub mod guidance;
 pub mod io;
 pub mod latent;
 pub mod maps;

@@ -165,6 +165,34 @@ pub fn normal_agreement(normal: &[f32], height: &[f32], width: usize, rows: usiz
     sum / count.max(1) as f64
 }
 
+/// Directional stripes: vertical stripes of period `period` pixels whose bright part grows from
+/// `duty0` of the period at the left edge to `duty1` at the right, so the image brightens from
+/// left to right. An exemplar for guided training (`--guide x`).
+pub fn graded_stripes(
+    width: usize,
+    height: usize,
+    period: f32,
+    duty0: f32,
+    duty1: f32,
+) -> Vec<f32> {
+    let mut out = Vec::with_capacity(width * height * 3);
+    for y in 0..height {
+        for x in 0..width {
+            let xf = x as f32 + 0.5;
+            let duty = duty0 + (duty1 - duty0) * xf / width as f32;
+            // Distance (pixels) inside the bright part of the period, soft over one pixel.
+            let t = (xf / period).fract() * period;
+            let inside = (duty * period - t).min(t).min(period - t + 0.0);
+            let v = (inside + 0.5).clamp(0.0, 1.0);
+            let grain = 0.04 * (noise(31, x as i64, y as i64) - 0.5);
+            out.push((0.15 + 0.7 * v + grain).clamp(0.0, 1.0));
+            out.push((0.25 + 0.5 * v + grain).clamp(0.0, 1.0));
+            out.push((0.55 - 0.3 * v + grain).clamp(0.0, 1.0));
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -18,6 +18,7 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::generator::fused::{CHUNK_POINTS, FusedGenerator, Scratch};
 use crate::generator::{Generator, GeneratorConfig, GeneratorWeights};
+use crate::guidance::Guide;
 use crate::input_error;
 use crate::io::{ImageWriter, OutputFormat};
 use crate::latent::LatentField;
@@ -212,6 +213,7 @@ pub struct Synth {
     tile: Option<[usize; 2]>,
     mirror: Option<[usize; 2]>,
     noise_scale: f64,
+    guide: Option<(Guide, [usize; 2])>,
     device: DeviceChoice,
 }
 
@@ -227,6 +229,7 @@ impl Synth {
             tile: None,
             mirror: None,
             noise_scale: 1.0,
+            guide: None,
             device: DeviceChoice::Cpu,
         }
     }
@@ -271,6 +274,13 @@ impl Synth {
         self
     }
 
+    /// `--guide`: the guidance field of a guided model, over the `width x height` output frame
+    /// whose top-left pixel is the offset.
+    pub fn guide(mut self, guide: Guide, width: usize, height: usize) -> Self {
+        self.guide = Some((guide, [height, width]));
+        self
+    }
+
     /// `--device`.
     pub fn device(mut self, device: DeviceChoice) -> Self {
         self.device = device;
@@ -296,6 +306,20 @@ impl Synth {
                 "--noise-scale {}: must be a positive number",
                 self.noise_scale
             ));
+        }
+        match (&self.guide, self.config.guidance) {
+            (None, 1..) => {
+                return Err(input_error!(
+                    "this model is guided (trained with --guide); give --guide x, y, a,b,c or a grayscale image"
+                ));
+            }
+            (Some(_), 0) => {
+                return Err(input_error!(
+                    "--guide: this model was trained without guidance; train with --guide to make a guided model"
+                ));
+            }
+            (Some((guide, [h, w])), _) => guide.check_frame(*w, *h)?,
+            (None, 0) => {}
         }
         if self.mirror.is_some_and(|m| m.contains(&0)) {
             return Err(input_error!("--mirror: tile size must be at least 1 pixel"));
@@ -348,6 +372,7 @@ impl Synth {
             channels: self.config.channels,
             tile,
             mirror: self.mirror,
+            guide: self.guide,
         })
     }
 }
@@ -362,6 +387,7 @@ pub struct Painter {
     channels: usize,
     tile: Option<TileAdjustment>,
     mirror: Option<[usize; 2]>,
+    guide: Option<(Guide, [usize; 2])>,
 }
 
 /// Where pixel `i` of a mirror tile of `n` pixels takes its value: the tile repeats, and its
@@ -418,6 +444,27 @@ impl Painter {
         out
     }
 
+    /// The guidance values of `count` pixels from the `start`-th pixel (row-major) of the region
+    /// `width` wide whose top-left pixel is `(y0, x0)` in the plane; empty for an unguided model.
+    fn guide_values(
+        &self,
+        y0: i64,
+        x0: i64,
+        width: usize,
+        start: usize,
+        count: usize,
+        out: &mut Vec<f32>,
+    ) {
+        out.clear();
+        if let Some((guide, [fh, fw])) = &self.guide {
+            out.extend((start..start + count).map(|k| {
+                let row = y0 + (k / width) as i64 - self.offset[0];
+                let col = x0 + (k % width) as i64 - self.offset[1];
+                guide.at(row, col, *fw, *fh)
+            }));
+        }
+    }
+
     /// Renders `width x height` pixels whose top-left pixel is `(y0, x0)` in the plane.
     fn render_plane(&self, y0: i64, x0: i64, width: usize, height: usize) -> Vec<f32> {
         let total = width * height;
@@ -428,16 +475,18 @@ impl Painter {
                 out.par_chunks_mut(CHUNK_POINTS * c)
                     .enumerate()
                     .for_each_init(
-                        || (Scratch::default(), Vec::new()),
-                        |(scratch, coords), (chunk, values)| {
+                        || (Scratch::default(), Vec::new(), Vec::new()),
+                        |(scratch, coords, g), (chunk, values)| {
                             let start = chunk * CHUNK_POINTS;
                             let count = values.len() / c;
                             self.grid
                                 .region_coordinates(y0, x0, width, start, count, coords);
+                            self.guide_values(y0, x0, width, start, count, g);
                             generator.eval(
                                 coords,
                                 &self.field,
                                 &self.latent_scale,
+                                g,
                                 values,
                                 scratch,
                             );
@@ -450,7 +499,9 @@ impl Painter {
                 chunk: chunk_points,
             } => {
                 let ld = self.field.latent_dim();
+                let guided = self.guide.is_some() as usize;
                 let (mut coords, mut u, mut latent) = (Vec::new(), Vec::new(), Vec::new());
+                let mut g = Vec::new();
                 for (chunk, values) in out.chunks_mut(chunk_points * c).enumerate() {
                     let count = values.len() / c;
                     self.grid.region_coordinates(
@@ -469,10 +520,20 @@ impl Painter {
                     );
                     latent.resize(count * ld, 0.0);
                     self.field.fill(&u, &mut latent);
+                    self.guide_values(y0, x0, width, chunk * chunk_points, count, &mut g);
+                    let input: Vec<f32> = if guided == 0 {
+                        latent.clone()
+                    } else {
+                        latent
+                            .chunks_exact(ld)
+                            .zip(&g)
+                            .flat_map(|(z, gv)| z.iter().copied().chain([*gv]))
+                            .collect()
+                    };
                     let p =
                         Tensor::<2>::from_data(TensorData::new(coords.clone(), [count, 2]), device);
                     let z = Tensor::<2>::from_data(
-                        TensorData::new(latent.clone(), [count, ld]),
+                        TensorData::new(input, [count, ld + guided]),
                         device,
                     );
                     let y = generator.forward(p, z); // [count, channels]

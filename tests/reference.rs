@@ -84,6 +84,7 @@ fn output_matches_reference(device: DeviceChoice) {
                 &points,
                 &field,
                 &[0.5, 0.5],
+                &[],
                 &mut out,
                 &mut Scratch::default(),
             );

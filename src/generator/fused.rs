@@ -41,12 +41,14 @@ impl FusedGenerator {
     ///
     /// # Shapes
     /// - `p`: `[n, dims]` coordinates (row-major)
+    /// - `guide`: `[n]` guidance values, for a guided model (else empty)
     /// - `out`: `[n, channels]`, written with tanh outputs in [-1, 1]
     pub fn eval(
         &self,
         p: &[f32],
         field: &LatentField,
         latent_scale: &[f32],
+        guide: &[f32],
         out: &mut [f32],
         scratch: &mut Scratch,
     ) {
@@ -54,8 +56,10 @@ impl FusedGenerator {
         let dims = w.k.len();
         let n = p.len() / dims;
         let enc = w.octaves * 2 * dims;
-        let input = enc + field.latent_dim();
+        let guided = !guide.is_empty();
+        let input = enc + field.latent_dim() + guided as usize;
         debug_assert_eq!(w.layers[0].inputs, input);
+        debug_assert!(!guided || guide.len() == n);
         let widest = w
             .layers
             .iter()
@@ -76,12 +80,13 @@ impl FusedGenerator {
         }
         {
             let ld = field.latent_dim();
-            for i in 0..n {
-                let (u, row) = (
-                    &scratch.u[i * dims..(i + 1) * dims],
-                    &mut scratch.a[i * input + enc..(i + 1) * input],
-                );
+            let rows = scratch.a[..n * input].chunks_exact_mut(input);
+            for (i, (u, row)) in scratch.u.chunks_exact(dims).zip(rows).enumerate() {
+                let row = &mut row[enc..];
                 field.at(u, &mut row[..ld]);
+                if guided {
+                    row[ld] = guide[i];
+                }
             }
         }
 

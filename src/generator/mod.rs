@@ -52,12 +52,16 @@ pub struct GeneratorConfig {
     /// units; synthesis at zoom 1 paints at that scale.
     #[config(default = 128)]
     pub crop: usize,
+    /// Guidance channels appended to the MLP's input after the latent channels (conditional
+    /// IPFN, paper eq. 5): 0 for a plain model, 1 for a guided one.
+    #[config(default = 0)]
+    pub guidance: usize,
 }
 
 impl GeneratorConfig {
-    /// Width of the MLP's input: encoding channels plus latent channels.
+    /// Width of the MLP's input: encoding, latent and guidance channels.
     pub fn input_width(&self) -> usize {
-        encoding::channels(self.dims, self.octaves) + self.latent_dim
+        encoding::channels(self.dims, self.octaves) + self.latent_dim + self.guidance
     }
 
     /// `(inputs, outputs)` of every linear layer, output layer last.
@@ -95,6 +99,9 @@ impl GeneratorConfig {
                 self.latent_dim,
                 crate::latent::MAX_LATENT_DIM
             ));
+        }
+        if self.guidance > 1 {
+            return bad(&format!("guidance = {}, expected 0 or 1", self.guidance));
         }
         if self.width == 0 || self.hidden_layers == 0 {
             return bad("width and hidden_layers must be at least 1");
@@ -136,7 +143,8 @@ impl Generator {
     ///
     /// # Shapes
     /// - `p`: `[n, dims]` coordinates
-    /// - `latent`: `[n, latent_dim]` latent field values at those points
+    /// - `latent`: `[n, latent_dim + guidance]` latent field values at those points, then the
+    ///   guidance value of a guided model
     /// - output: `[n, channels]` in [-1, 1]
     pub fn forward(&self, p: Tensor<2>, latent: Tensor<2>) -> Tensor<2> {
         let [_, dims] = p.dims();
@@ -267,8 +275,17 @@ impl GeneratorWeights {
     /// Reads config and weights, checking every tensor against the config's shapes.
     pub fn read_from(checkpoint: &Checkpoint) -> crate::Result<(GeneratorConfig, Self)> {
         let path = checkpoint.source.display();
-        let config: GeneratorConfig = serde_json::from_str(checkpoint.meta(CONFIG_KEY)?)
-            .map_err(|e| input_error!("{path}: unreadable generator config: {e}"))?;
+        let unreadable =
+            |e: serde_json::Error| input_error!("{path}: unreadable generator config: {e}");
+        let mut json: serde_json::Value =
+            serde_json::from_str(checkpoint.meta(CONFIG_KEY)?).map_err(unreadable)?;
+        // Fields added after format version 1 was first written take their defaults.
+        if let Some(fields) = json.as_object_mut() {
+            fields
+                .entry("guidance")
+                .or_insert(serde_json::Value::from(0));
+        }
+        let config: GeneratorConfig = serde_json::from_value(json).map_err(unreadable)?;
         config.validate().map_err(|e| input_error!("{path}: {e}"))?;
         let k = checkpoint.tensor("generator.k", &[config.dims])?.to_vec();
         let mut layers = Vec::new();

@@ -22,6 +22,7 @@ use crate::critic::{Critic, CriticConfig};
 use crate::error::{Error, Result};
 use crate::generator::fused::{CHUNK_POINTS, FusedGenerator, Scratch};
 use crate::generator::{Generator, GeneratorConfig, GeneratorWeights};
+use crate::guidance::Guide;
 use crate::input_error;
 use crate::io::{Exemplar, write_png};
 use crate::latent::{LatentField, derive_seed, mix64};
@@ -69,6 +70,10 @@ pub struct TrainConfig {
     pub latent_scale: f32,
     /// Critic: output channels of its stride-2 convolutions.
     pub critic_widths: Vec<usize>,
+    /// Directional guidance (conditional IPFN): `x`, `y`, `-x`, `-y` or `a,b,c` for
+    /// `g = a·X + b·Y + c` over the exemplar's normalised coordinates. Unset: no guidance.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub guide: Option<String>,
 }
 
 impl Default for TrainConfig {
@@ -96,6 +101,7 @@ impl Default for TrainConfig {
             sigma: 0.2,
             latent_scale: 0.5,
             critic_widths: vec![64, 128, 256, 512],
+            guide: None,
         }
     }
 }
@@ -126,10 +132,18 @@ impl TrainConfig {
             // The model's pixel is the exemplar's pixel as the user gave it, before --resize,
             // so `synth` at zoom 1 paints the pattern at the exemplar's own scale.
             .with_crop(((self.crop as f64) / self.resize).round().max(1.0) as usize)
+            .with_guidance(self.guide.is_some() as usize)
     }
 
+    /// The critic sees the image's channels and, for a guided run, the guidance channel.
     pub fn critic_config(&self, channels: usize) -> CriticConfig {
-        CriticConfig::new(channels, self.crop).with_widths(self.critic_widths.clone())
+        CriticConfig::new(channels + self.guide.is_some() as usize, self.crop)
+            .with_widths(self.critic_widths.clone())
+    }
+
+    /// The guidance line, if the run is guided.
+    pub fn guide(&self) -> Result<Option<Guide>> {
+        self.guide.as_deref().map(str::parse).transpose()
     }
 
     /// Checks the numbers, and that the exemplar is large enough for the crop.
@@ -153,6 +167,7 @@ impl TrainConfig {
                 "lr and resize must be positive, gp_lambda and shift not negative"
             ));
         }
+        self.guide()?;
         self.critic_config(exemplar.channels).validate()?;
         self.generator_config(exemplar.channels).validate()?;
         if exemplar.width < self.crop || exemplar.height < self.crop {
@@ -180,6 +195,7 @@ mod stream {
     pub const CRITIC_FAKE: u64 = 7;
     pub const GENERATOR_FAKE: u64 = 8;
     pub const PREVIEW: u64 = 9;
+    pub const GUIDE: u64 = 10;
 }
 
 /// Uniform in [0, 1) from a seed and counters.
@@ -518,9 +534,11 @@ impl Trainer {
     /// - output: `[batch, channels, crop, crop]`
     pub fn real_batch(&self, counters: &[u64]) -> Tensor<4> {
         let (b, crop, c) = (self.config.batch, self.config.crop, self.exemplar.channels);
+        let guide = self.config.guide().expect("validated");
+        let cg = c + guide.is_some() as usize; // + the guidance channel
         let ex = &self.exemplar;
-        let mut data = vec![0f32; b * c * crop * crop];
-        for (s, sample) in data.chunks_mut(c * crop * crop).enumerate() {
+        let mut data = vec![0f32; b * cg * crop * crop];
+        for (s, sample) in data.chunks_mut(cg * crop * crop).enumerate() {
             let draw = |axis: u64, range: usize| {
                 let mut k = vec![stream::REAL_CROP, s as u64, axis];
                 k.extend_from_slice(counters);
@@ -536,8 +554,43 @@ impl Trainer {
                     }
                 }
             }
+            if let Some(g) = &guide {
+                // The crop's slice of g over the whole exemplar.
+                for y in 0..crop {
+                    for x in 0..crop {
+                        sample[(c * crop + y) * crop + x] =
+                            g.at((top + y) as i64, (left + x) as i64, ex.width, ex.height);
+                    }
+                }
+            }
         }
-        Tensor::from_data(TensorData::new(data, [b, c, crop, crop]), &self.device)
+        Tensor::from_data(TensorData::new(data, [b, cg, crop, crop]), &self.device)
+    }
+
+    /// The guidance slice `[crop * crop]` of generated sample `s`: g over the exemplar at a
+    /// random crop position (empty for an unguided run).
+    fn fake_guide(&self, s: usize, counters: &[u64]) -> Vec<f32> {
+        let Some(g) = self.config.guide().expect("validated") else {
+            return Vec::new();
+        };
+        let (crop, ex) = (self.config.crop, &self.exemplar);
+        let draw = |axis: u64, range: usize| {
+            let mut k = vec![stream::GUIDE, s as u64, axis];
+            k.extend_from_slice(counters);
+            ((uniform(self.config.seed, &k) * range as f32) as usize).min(range - 1)
+        };
+        let top = draw(0, ex.height - crop + 1);
+        let left = draw(1, ex.width - crop + 1);
+        (0..crop * crop)
+            .map(|q| {
+                g.at(
+                    (top + q / crop) as i64,
+                    (left + q % crop) as i64,
+                    ex.width,
+                    ex.height,
+                )
+            })
+            .collect()
     }
 
     /// The random shift and latent field of generated sample `s`.
@@ -586,66 +639,105 @@ impl Trainer {
     ) -> Tensor<4> {
         let cfg = &self.config;
         let (b, crop, c, ld) = (cfg.batch, cfg.crop, self.exemplar.channels, cfg.latent_dim);
+        let guided = cfg.guide.is_some() as usize;
+        let zw = ld + guided; // generator input after the encoding: latent, then g
         let n = crop * crop;
         let mut coords = vec![0f32; b * n * 2];
-        let mut latent = vec![0f32; b * n * ld];
+        let mut latent = vec![0f32; b * n * zw];
+        let mut guides = vec![0f32; b * n]; // used by a guided run only
         coords
             .par_chunks_mut(n * 2)
-            .zip(latent.par_chunks_mut(n * ld))
+            .zip(latent.par_chunks_mut(n * zw))
+            .zip(guides.par_chunks_mut(n))
             .enumerate()
-            .for_each(|(s, (p, z))| {
+            .for_each(|(s, ((p, z), gs))| {
                 let (shift, field) = self.sample_plan(s, counters);
                 p.copy_from_slice(&self.crop_coordinates(shift));
                 let u: Vec<f32> = p.iter().map(|v| v * cfg.latent_scale).collect();
-                field.fill(&u, z);
+                if guided == 0 {
+                    field.fill(&u, z);
+                } else {
+                    let g = self.fake_guide(s, counters);
+                    let mut zs = vec![0f32; n * ld];
+                    field.fill(&u, &mut zs);
+                    for q in 0..n {
+                        z[q * zw..q * zw + ld].copy_from_slice(&zs[q * ld..(q + 1) * ld]);
+                        z[q * zw + ld] = g[q];
+                    }
+                    gs.copy_from_slice(&g);
+                }
             });
         let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, 2]), device);
-        let z = Tensor::<2>::from_data(TensorData::new(latent, [b * n, ld]), device);
-        generator
+        let z = Tensor::<2>::from_data(TensorData::new(latent, [b * n, zw]), device);
+        let image = generator
             .forward(p, z) // [b * crop * crop, c]
             .reshape([b, crop, crop, c])
-            .permute([0, 3, 1, 2]) // [b, c, crop, crop]
+            .permute([0, 3, 1, 2]); // [b, c, crop, crop]
+        if guided == 0 {
+            return image;
+        }
+        // The critic sees the guidance the generator was given, as one more channel.
+        let g = Tensor::<4>::from_data(TensorData::new(guides, [b, 1, crop, crop]), device);
+        Tensor::cat(vec![image, g], 1) // [b, c + 1, crop, crop]
     }
 
     /// The same crops as [`Trainer::fake_batch`], evaluated by the fused CPU generator (no
     /// gradient: for the critic's steps).
     ///
     /// # Shapes
-    /// - output: `[batch, channels, crop, crop]` on the training device
+    /// - output: `[batch, channels (+ 1 guidance), crop, crop]` on the training device
     pub fn fake_batch_fused(&self, generator: &FusedGenerator, counters: &[u64]) -> Tensor<4> {
         let cfg = &self.config;
         let (b, crop, c) = (cfg.batch, cfg.crop, self.exemplar.channels);
+        let guided = cfg.guide.is_some() as usize;
+        let cg = c + guided;
         let n = crop * crop;
         let scale = [cfg.latent_scale; 2];
         let mut points = vec![0f32; b * n * c]; // [b, n, c]
+        let mut guides = vec![0f32; b * n]; // [b, n], used by a guided run only
         points
             .par_chunks_mut(n * c)
+            .zip(guides.par_chunks_mut(n))
             .enumerate()
-            .for_each(|(s, out)| {
+            .for_each(|(s, (out, gs))| {
                 let (shift, field) = self.sample_plan(s, counters);
                 let p = self.crop_coordinates(shift);
+                let g = self.fake_guide(s, counters);
+                if !g.is_empty() {
+                    gs.copy_from_slice(&g);
+                }
                 out.par_chunks_mut(CHUNK_POINTS * c)
                     .enumerate()
                     .for_each_init(Scratch::default, |scratch, (i, o)| {
-                        let start = i * CHUNK_POINTS * 2;
+                        let start = i * CHUNK_POINTS;
+                        let count = o.len() / c;
+                        let gi = if g.is_empty() {
+                            &g[..]
+                        } else {
+                            &g[start..start + count]
+                        };
                         generator.eval(
-                            &p[start..start + o.len() / c * 2],
+                            &p[start * 2..(start + count) * 2],
                             &field,
                             &scale,
+                            gi,
                             o,
                             scratch,
                         );
                     });
             });
-        let mut planar = vec![0f32; b * c * n]; // [b, c, n]
+        let mut planar = vec![0f32; b * cg * n]; // [b, c (+ g), n]
         for s in 0..b {
             for q in 0..n {
                 for ch in 0..c {
-                    planar[(s * c + ch) * n + q] = points[(s * n + q) * c + ch];
+                    planar[(s * cg + ch) * n + q] = points[(s * n + q) * c + ch];
+                }
+                if guided == 1 {
+                    planar[(s * cg + c) * n + q] = guides[s * n + q];
                 }
             }
         }
-        Tensor::from_data(TensorData::new(planar, [b, c, crop, crop]), &self.device)
+        Tensor::from_data(TensorData::new(planar, [b, cg, crop, crop]), &self.device)
     }
 
     /// Runs one iteration: critic steps, then generator steps.
@@ -777,15 +869,14 @@ impl Trainer {
     pub fn save_preview(&self) -> Result<PathBuf> {
         let (config, weights) = self.model();
         let side = 2 * config.crop; // 4x the crop's area, in the model's pixels
-        let painter = Synth::new(config, weights)
+        let crop = self.config.crop as i64;
+        let mut synth = Synth::new(config, weights)
             .seed(derive_seed(self.config.seed, &[stream::PREVIEW]))
-            .painter()?;
-        let pixels = painter.render(
-            -(self.config.crop as i64),
-            -(self.config.crop as i64),
-            side,
-            side,
-        );
+            .offset(-crop, -crop);
+        if let Some(g) = self.config.guide()? {
+            synth = synth.guide(g, side, side); // the training line over the preview's frame
+        }
+        let pixels = synth.painter()?.render(0, 0, side, side);
         let dir = self.run_dir.join("previews");
         std::fs::create_dir_all(&dir)
             .map_err(|e| Error::Runtime(format!("{}: cannot create: {e}", dir.display())))?;
