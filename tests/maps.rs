@@ -333,3 +333,63 @@ fn map_sets_refuse_mismatched_maps_with_one_line() {
         &["stripes.png", "channels"],
     );
 }
+
+/// Float (EXR) maps keep float precision: a set of EXR inputs is painted back as EXR files.
+#[test]
+fn float_maps_are_painted_as_exr() {
+    let dir = setup();
+    let d = dir.path();
+    for (name, channels) in [("base", 3), ("mask", 1)] {
+        let values: Vec<f32> = (0..64 * 64 * channels)
+            .map(|i| ((i % 64) as f32 / 32.0).sin() * 0.9)
+            .collect();
+        let mut w = ipfn::io::ImageWriter::create(
+            &d.join(format!("{name}.exr")),
+            ipfn::io::OutputFormat::Exr,
+            64,
+            64,
+            channels,
+        )
+        .unwrap();
+        w.write_rows(&values).unwrap();
+        w.finish().unwrap();
+    }
+    let out = ipfn(
+        d,
+        &[
+            "train",
+            "--maps",
+            "base.exr,mask.exr",
+            "--config",
+            "m.toml",
+            "--iterations",
+            "1",
+            "--out",
+            "run",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("base (3 ch, 32-bit)"),
+        "{}",
+        stderr(&out)
+    );
+    let synth = ipfn(
+        d,
+        &[
+            "synth",
+            "--model",
+            "run/latest.ipfn",
+            "--size",
+            "32",
+            "--out",
+            "f.png",
+        ],
+    );
+    assert!(synth.status.success(), "{}", stderr(&synth));
+    for name in ["f-base.exr", "f-mask.exr"] {
+        let image = ipfn::io::read_exemplar(&d.join(name)).unwrap();
+        assert_eq!((image.width, image.height), (32, 32), "{name}");
+    }
+    assert!(!d.join("f-base.png").exists());
+}
