@@ -19,6 +19,8 @@ use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 
 use crate::input_error;
 
+pub mod volume;
+
 /// Shape of a critic. The crop must be a multiple of 2^(number of convolutions).
 #[derive(Config, Debug, PartialEq)]
 pub struct CriticConfig {
