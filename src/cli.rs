@@ -255,7 +255,8 @@ pub struct DrawArgs {
     /// bricks (32x16 bricks: period 32 across, 32 down), weave (thread pitch 8: period 16),
     /// stripes (period 40 across), graded (16 px stripes whose bright part grows from 15% of
     /// the period at the left to 85% at the right: for --guide x), or material: a map set (albedo, normal, roughness,
-    /// height; 16-bit PNGs, period 32) written into the folder --out.
+    /// height; 16-bit PNGs, period 32) written into the folder --out, or gyroid: a signed
+    /// distance volume (.npy, size^3 voxels, period 32).
     pub pattern: String,
     /// Width and height in pixels.
     #[arg(long, default_value_t = 256)]
@@ -280,6 +281,9 @@ pub struct SynthArgs {
     /// Output height in pixels (overrides --size).
     #[arg(long, value_name = "H")]
     pub height: Option<usize>,
+    /// Depth in voxels: paint a volume (`[D, H, W, C]` .npy) with a 3D model.
+    #[arg(long, value_name = "D")]
+    pub depth: Option<usize>,
     /// Seed of the latent field: each seed paints a different sample.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -446,6 +450,9 @@ fn synth(args: SynthArgs) -> Result<()> {
         return Err(input_error!(
             "size {width}x{height}: width and height must be at least 1"
         ));
+    }
+    if let Some(depth) = args.depth {
+        return synth_volume(&args, width, height, depth);
     }
     if args.bits.is_some_and(|b| b != 8 && b != 16) {
         return Err(input_error!(
@@ -769,6 +776,17 @@ fn draw(args: DrawArgs) -> Result<()> {
         return Err(input_error!("--size 0: must be at least 1"));
     }
     let n = args.size;
+    if args.pattern == "gyroid" {
+        let sdf = procedural::gyroid_sdf(n, 32.0, 0.4);
+        let mut writer = crate::io::VolumeWriter::create(&args.out, n, n, n, 1)?;
+        writer.write_slab(&sdf)?;
+        writer.finish()?;
+        eprintln!(
+            "wrote {} ({n}x{n}x{n} gyroid sheet SDF, period 32 voxels)",
+            args.out.display()
+        );
+        return Ok(());
+    }
     if args.pattern == "material" {
         std::fs::create_dir_all(&args.out)
             .map_err(|e| input_error!("{}: cannot create folder: {e}", args.out.display()))?;
@@ -799,7 +817,7 @@ fn draw(args: DrawArgs) -> Result<()> {
         "graded" => procedural::graded_stripes(n, n, 16.0, 0.15, 0.85),
         other => {
             return Err(input_error!(
-                "unknown pattern '{other}'; use bricks, weave, stripes, graded or material"
+                "unknown pattern '{other}'; use bricks, weave, stripes, graded, material or gyroid"
             ));
         }
     };
@@ -956,5 +974,36 @@ fn bench(args: BenchArgs) -> Result<()> {
     println!("| work | device | ours | floor measured now (or reference) | ours / floor |");
     println!("|---|---|---|---|---|");
     bench::run(&plan, |row| println!("{}", row.markdown()))?;
+    Ok(())
+}
+
+/// `ipfn synth --depth D`: a volume from a 3D model, streamed to .npy in slabs.
+fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> Result<()> {
+    if depth == 0 {
+        return Err(input_error!("--depth 0: must be at least 1"));
+    }
+    if args.tile || args.mirror || args.guide.is_some() {
+        return Err(input_error!(
+            "--tile, --mirror and --guide are for images; volumes do not support them yet"
+        ));
+    }
+    crate::io::check_destination(&args.out)?;
+    let model = choose_model(args.model.as_deref(), Path::new("."))?;
+    let painter = Synth::new(model.config, model.weights)
+        .seed(args.seed)
+        .zoom(args.zoom)
+        .volume_painter()?;
+    let start = Instant::now();
+    painter.write_npy(&args.out, depth, height, width, DEFAULT_BAND_PIXELS, |_| {})?;
+    if !args.quiet {
+        eprintln!(
+            "model: {}\nwrote {} ({width}x{height}x{depth} voxels, {} channels, seed {}) in {:.2} s",
+            model.description,
+            args.out.display(),
+            painter.channels(),
+            args.seed,
+            start.elapsed().as_secs_f64()
+        );
+    }
     Ok(())
 }

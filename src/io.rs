@@ -612,3 +612,118 @@ pub fn write_png(
     writer.write_rows(values)?;
     writer.finish()
 }
+
+/// A volume of values, row-major `[depth, height, width, channels]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Volume {
+    pub depth: usize,
+    pub height: usize,
+    pub width: usize,
+    pub channels: usize,
+    pub values: Vec<f32>,
+}
+
+/// Reads a signed-distance volume (`.npy`, float, `D x H x W` or `D x H x W x 1`) as the authors
+/// prepare one: scaled by `sdf_scale` and clamped to [-1, 1] (a truncated SDF).
+pub fn read_sdf_volume(path: &Path, sdf_scale: f32) -> Result<Volume> {
+    if !path.exists() {
+        return Err(input_error!("{}: no such file", path.display()));
+    }
+    let (shape, values) = read_npy(path)?;
+    let [depth, height, width] = match shape[..] {
+        [d, h, w] | [d, h, w, 1] => [d, h, w],
+        _ => {
+            return Err(input_error!(
+                "{}: a volume must be a 3D float array (D x H x W), this one has shape {shape:?}",
+                path.display()
+            ));
+        }
+    };
+    if depth == 0 || height == 0 || width == 0 {
+        return Err(input_error!("{}: the volume is empty", path.display()));
+    }
+    if values.iter().any(|v| !v.is_finite()) {
+        return Err(input_error!(
+            "{}: the volume holds NaN or infinite values",
+            path.display()
+        ));
+    }
+    Ok(Volume {
+        depth,
+        height,
+        width,
+        channels: 1,
+        values: values
+            .iter()
+            .map(|v| (v * sdf_scale).clamp(-1.0, 1.0))
+            .collect(),
+    })
+}
+
+/// Streams a volume `[depth, height, width, channels]` to `.npy` in slabs of whole depth
+/// slices, under a temporary name renamed into place by [`VolumeWriter::finish`].
+pub struct VolumeWriter {
+    writer: npyz::NpyWriter<f32, BufWriter<File>>,
+    file: AtomicFile,
+    path: PathBuf,
+    slice: usize,
+    expected: usize,
+    written: usize,
+}
+
+impl VolumeWriter {
+    pub fn create(
+        path: &Path,
+        depth: usize,
+        height: usize,
+        width: usize,
+        channels: usize,
+    ) -> Result<Self> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        if ext != "npy" {
+            return Err(input_error!(
+                "{}: volumes are written as .npy (float32, [D, H, W, C])",
+                path.display()
+            ));
+        }
+        let mut file = AtomicFile::create(path)?;
+        let io_err =
+            |e: std::io::Error| Error::Runtime(format!("{}: cannot write: {e}", path.display()));
+        let handle = file.file().try_clone().map_err(io_err)?;
+        let writer = npyz::WriteOptions::new()
+            .default_dtype()
+            .shape(&[depth as u64, height as u64, width as u64, channels as u64])
+            .writer(BufWriter::new(handle))
+            .begin_nd()
+            .map_err(io_err)?;
+        Ok(Self {
+            writer,
+            file,
+            path: path.to_path_buf(),
+            slice: height * width * channels,
+            expected: depth * height * width * channels,
+            written: 0,
+        })
+    }
+
+    /// Appends whole depth slices.
+    pub fn write_slab(&mut self, values: &[f32]) -> Result<()> {
+        assert!(values.len().is_multiple_of(self.slice), "whole slices only");
+        self.writer
+            .extend(values.iter().copied())
+            .map_err(|e| Error::Runtime(format!("{}: cannot write: {e}", self.path.display())))?;
+        self.written += values.len();
+        Ok(())
+    }
+
+    pub fn finish(self) -> Result<()> {
+        assert_eq!(self.written, self.expected, "every slice written");
+        self.writer
+            .finish()
+            .map_err(|e| Error::Runtime(format!("{}: cannot write: {e}", self.path.display())))?;
+        self.file.commit()
+    }
+}

@@ -193,6 +193,39 @@ pub fn graded_stripes(
     out
 }
 
+/// A signed-distance volume of a gyroid sheet (a porous, triply periodic surface): `n` voxels
+/// per side, period `period` voxels, sheet half-thickness `thickness` (in units of the gyroid
+/// function). Row-major `[n, n, n]` (z, y, x); negative inside the sheet. Distances are a
+/// first-order estimate (`(|f| - t) / |grad f|`) in units of the volume's side, so the
+/// authors' `sdf_scale` of 10 truncates at a tenth of the side.
+pub fn gyroid_sdf(n: usize, period: f32, thickness: f32) -> Vec<f32> {
+    let k = std::f32::consts::TAU / period;
+    let mut out = Vec::with_capacity(n * n * n);
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let (a, b, c) = (
+                    k * (x as f32 + 0.5),
+                    k * (y as f32 + 0.5),
+                    k * (z as f32 + 0.5),
+                );
+                let f = a.sin() * b.cos() + b.sin() * c.cos() + c.sin() * a.cos();
+                let grad = [
+                    a.cos() * b.cos() - c.sin() * a.sin(),
+                    -a.sin() * b.sin() + b.cos() * c.cos(),
+                    -b.sin() * c.sin() + c.cos() * a.cos(),
+                ];
+                let norm = (grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
+                    .sqrt()
+                    .max(0.5)
+                    * k;
+                out.push((f.abs() - thickness) / norm / n as f32);
+            }
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

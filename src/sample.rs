@@ -46,4 +46,28 @@ impl PixelGrid {
             out.push(self.coordinate(x0 + col));
         }
     }
+
+    /// Writes the `(depth, row, col)` coordinates of `count` consecutive voxels of a
+    /// `height x width` box whose first voxel is `(z0, y0, x0)`, starting at flat index `start`
+    /// (row-major), into `out` (`[count, 3]`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn box_coordinates(
+        &self,
+        origin: [i64; 3],
+        height: usize,
+        width: usize,
+        start: usize,
+        count: usize,
+        out: &mut Vec<f32>,
+    ) {
+        out.clear();
+        out.reserve(count * 3);
+        for flat in start..start + count {
+            let plane = height * width;
+            let (d, r, c) = (flat / plane, (flat % plane) / width, flat % width);
+            out.push(self.coordinate(origin[0] + d as i64));
+            out.push(self.coordinate(origin[1] + r as i64));
+            out.push(self.coordinate(origin[2] + c as i64));
+        }
+    }
 }

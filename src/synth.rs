@@ -291,7 +291,7 @@ impl Synth {
     pub fn painter(self) -> Result<Painter> {
         if self.config.dims != 2 {
             return Err(input_error!(
-                "this model has {} coordinate axes; image synthesis needs a 2D model",
+                "this model has {} coordinate axes; image synthesis needs a 2D model (paint volumes with --depth)",
                 self.config.dims
             ));
         }
@@ -611,6 +611,118 @@ impl Painter {
             writer.finish()?;
         }
         Ok(())
+    }
+}
+
+/// A prepared volume synthesis (a 3D model): renders boxes of the infinite volume on the CPU,
+/// with the fused evaluator, in chunks, so memory is bounded by the slab being written.
+pub struct VolumePainter {
+    generator: FusedGenerator,
+    field: LatentField,
+    latent_scale: Vec<f32>,
+    grid: PixelGrid,
+    channels: usize,
+}
+
+impl Synth {
+    /// Prepares a volume synthesis for a 3D model (seed and zoom apply; the other options are
+    /// for images).
+    pub fn volume_painter(self) -> Result<VolumePainter> {
+        if self.config.dims != 3 {
+            return Err(input_error!(
+                "this model has {} coordinate axes; volume synthesis (--depth) needs a 3D model",
+                self.config.dims
+            ));
+        }
+        if !(self.zoom.is_finite() && self.zoom > 0.0) {
+            return Err(input_error!(
+                "--zoom {}: must be a positive number",
+                self.zoom
+            ));
+        }
+        if self.tile.is_some() || self.mirror.is_some() || self.guide.is_some() {
+            return Err(input_error!(
+                "--tile, --mirror and --guide are for images; volumes do not support them yet"
+            ));
+        }
+        Ok(VolumePainter {
+            channels: self.config.channels,
+            field: LatentField::hashed(self.seed, 3, self.config.latent_dim)
+                .with_sigma(self.config.sigma),
+            latent_scale: vec![self.config.latent_scale; 3],
+            grid: PixelGrid::new(self.config.crop, self.zoom),
+            generator: FusedGenerator::new(self.weights),
+        })
+    }
+}
+
+impl VolumePainter {
+    pub fn channels(&self) -> usize {
+        self.channels
+    }
+
+    /// Renders the `depth x height x width` box whose first voxel is `(z, y, x)`.
+    ///
+    /// # Shapes
+    /// - output: `[depth, height, width, channels]`, row-major, values in [-1, 1]
+    pub fn render(&self, origin: [i64; 3], depth: usize, height: usize, width: usize) -> Vec<f32> {
+        let c = self.channels;
+        // Chunks are groups of whole rows inside one depth slice, counted from the slice's first
+        // row, so every slab decomposition of a box evaluates the same chunks: the same region
+        // renders bit for bit alike however it is split into slabs.
+        let rows_per_chunk = (CHUNK_POINTS / width.max(1)).clamp(1, height.max(1));
+        let chunks_per_slice = height.div_ceil(rows_per_chunk);
+        let mut out = vec![0f32; depth * height * width * c];
+        let mut pieces: Vec<(usize, &mut [f32])> = Vec::new();
+        for (z, slice) in out.chunks_mut(height * width * c).enumerate() {
+            for (k, piece) in slice.chunks_mut(rows_per_chunk * width * c).enumerate() {
+                pieces.push((z * chunks_per_slice + k, piece));
+            }
+        }
+        pieces.into_par_iter().for_each_init(
+            || (Scratch::default(), Vec::new()),
+            |(scratch, coords), (index, values)| {
+                let (z, k) = (index / chunks_per_slice, index % chunks_per_slice);
+                let start = z * height * width + k * rows_per_chunk * width;
+                let count = values.len() / c;
+                self.grid
+                    .box_coordinates(origin, height, width, start, count, coords);
+                self.generator.eval(
+                    coords,
+                    &self.field,
+                    &self.latent_scale,
+                    &[],
+                    values,
+                    scratch,
+                );
+            },
+        );
+        out
+    }
+
+    /// Writes the `depth x height x width` volume at the origin to `.npy` (`[D, H, W, C]`, raw
+    /// generator values), in slabs of whole depth slices of about `slab_voxels` voxels,
+    /// calling `progress(slices_done)` after each.
+    pub fn write_npy(
+        &self,
+        path: &Path,
+        depth: usize,
+        height: usize,
+        width: usize,
+        slab_voxels: usize,
+        mut progress: impl FnMut(usize),
+    ) -> Result<()> {
+        let mut writer =
+            crate::io::VolumeWriter::create(path, depth, height, width, self.channels)?;
+        let slab = (slab_voxels / (height * width).max(1)).clamp(1, depth.max(1));
+        let mut z = 0;
+        while z < depth {
+            let n = slab.min(depth - z);
+            writer.write_slab(&self.render([z as i64, 0, 0], n, height, width))?;
+            z += n;
+            progress(z);
+        }
+        writer.finish()
     }
 }
 

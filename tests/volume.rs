@@ -1,0 +1,166 @@
+//! Volumes (groundwork for 3D): signed-distance volumes in, and chunked volume synthesis with a
+//! 3D generator out, identical in any chunking.
+
+mod common;
+
+use common::{assert_error, ipfn, stderr};
+use npyz::WriterBuilder;
+use ipfn::checkpoint::Checkpoint;
+use ipfn::generator::{GeneratorConfig, GeneratorWeights};
+use ipfn::io::{read_npy, read_sdf_volume};
+use ipfn::synth::Synth;
+
+fn model_3d() -> (GeneratorConfig, GeneratorWeights) {
+    let config = GeneratorConfig::new()
+        .with_dims(3)
+        .with_channels(1)
+        .with_hidden_layers(3)
+        .with_width(24)
+        .with_crop(32);
+    let weights = GeneratorWeights::random(&config);
+    (config, weights)
+}
+
+#[test]
+fn sdf_volumes_are_read_scaled_and_clamped() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = ipfn(d, &["draw", "gyroid", "--size", "32", "-o", "g.npy"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let (shape, raw) = read_npy(&d.join("g.npy")).unwrap();
+    assert_eq!(shape, [32, 32, 32, 1]);
+    let v = read_sdf_volume(&d.join("g.npy"), 10.0).unwrap();
+    assert_eq!((v.depth, v.height, v.width, v.channels), (32, 32, 32, 1));
+    for (a, b) in raw.iter().zip(&v.values) {
+        assert_eq!((a * 10.0).clamp(-1.0, 1.0), *b);
+    }
+    // The gyroid sheet is porous: some of the volume is inside, most outside.
+    let inside = v.values.iter().filter(|x| **x < 0.0).count() as f64 / v.values.len() as f64;
+    assert!((0.1..0.5).contains(&inside), "solid fraction {inside}");
+
+    // Not a 3D float volume: one line naming the file.
+    {
+        let file = std::io::BufWriter::new(std::fs::File::create(d.join("flat.npy")).unwrap());
+        let mut w = npyz::WriteOptions::<f32>::new()
+            .default_dtype()
+            .shape(&[4, 8])
+            .writer(file)
+            .begin_nd()
+            .unwrap();
+        w.extend([0.0f32; 32]).unwrap();
+        w.finish().unwrap();
+    }
+    let err = read_sdf_volume(&d.join("flat.npy"), 10.0)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("flat.npy") && err.contains("3D float array"),
+        "{err}"
+    );
+    std::fs::write(d.join("junk.npy"), b"not numpy").unwrap();
+    let err = read_sdf_volume(&d.join("junk.npy"), 10.0)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("junk.npy"), "{err}");
+}
+
+#[test]
+fn volume_synthesis_is_the_same_in_any_chunking() {
+    let (config, weights) = model_3d();
+    let painter = Synth::new(config, weights)
+        .seed(9)
+        .volume_painter()
+        .unwrap();
+    let (dd, h, w) = (9, 11, 13);
+    let whole = painter.render([0, 0, 0], dd, h, w);
+    // Slabs of one slice, and of four, concatenate to the whole.
+    for slab in [1, 4] {
+        let mut parts = Vec::new();
+        let mut z = 0;
+        while z < dd {
+            let n = slab.min(dd - z);
+            parts.extend(painter.render([z as i64, 0, 0], n, h, w));
+            z += n;
+        }
+        assert_eq!(parts, whole, "slabs of {slab}");
+    }
+    // A sub-box at an origin is that part of the whole (its rows are evaluated in other
+    // chunks, so equal up to float rounding).
+    let sub = painter.render([2, 3, 5], 4, 5, 6);
+    for a in 0..4 {
+        for b in 0..5 {
+            for c in 0..6 {
+                let i = ((a + 2) * h + b + 3) * w + c + 5;
+                assert!((sub[(a * 5 + b) * 6 + c] - whole[i]).abs() < 1e-5);
+            }
+        }
+    }
+    // The field varies through depth.
+    assert!(whole[..h * w] != whole[h * w..2 * h * w]);
+}
+
+#[test]
+fn synth_depth_writes_a_volume_and_refuses_mismatches() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (config, weights) = model_3d();
+    let mut ckpt = Checkpoint::new();
+    weights.write_to(&config, &mut ckpt);
+    ckpt.save(&d.join("m3.ipfn")).unwrap();
+
+    let out = ipfn(
+        d,
+        &[
+            "synth", "--model", "m3.ipfn", "--width", "12", "--height", "10", "--depth", "7",
+            "--seed", "4", "--out", "v.npy",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let (shape, values) = read_npy(&d.join("v.npy")).unwrap();
+    assert_eq!(shape, [7, 10, 12, 1]);
+    let expected = Synth::new(config, weights)
+        .seed(4)
+        .volume_painter()
+        .unwrap()
+        .render([0, 0, 0], 7, 10, 12);
+    assert_eq!(values, expected);
+
+    assert_error(
+        &ipfn(d, &["synth", "--model", "m3.ipfn", "--out", "x.png"]),
+        &["2D model", "--depth"],
+    );
+    let shipped = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("exemplars/honeycomb.ipfn");
+    assert_error(
+        &ipfn(
+            d,
+            &[
+                "synth",
+                "--model",
+                shipped.to_str().unwrap(),
+                "--depth",
+                "4",
+                "--out",
+                "v2.npy",
+            ],
+        ),
+        &["3D model"],
+    );
+    assert_error(
+        &ipfn(
+            d,
+            &[
+                "synth", "--model", "m3.ipfn", "--depth", "4", "--out", "v.png",
+            ],
+        ),
+        &["v.png", ".npy"],
+    );
+    assert_error(
+        &ipfn(
+            d,
+            &[
+                "synth", "--model", "m3.ipfn", "--depth", "0", "--out", "z.npy",
+            ],
+        ),
+        &["--depth 0"],
+    );
+}
