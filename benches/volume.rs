@@ -21,7 +21,10 @@ fn main() {
         .ok()
         .map(|v| v.split(',').filter_map(|s| s.trim().parse().ok()).collect())
         .unwrap_or_else(|| vec![128, 256]);
-    let config = GeneratorConfig::new().with_dims(3).with_channels(1).with_crop(64);
+    let config = GeneratorConfig::new()
+        .with_dims(3)
+        .with_channels(1)
+        .with_crop(64);
     let shapes = config.layer_shapes();
     let flop_per_point = 2.0 * config.macs_per_point() as f64;
     let painter = Synth::new(config.clone(), GeneratorWeights::random(&config))
@@ -33,7 +36,9 @@ fn main() {
         rayon::current_num_threads(),
         config.input_width()
     );
-    println!("| side | voxels | ours | GEMM floor | ours / floor | ours GFLOP/s | paper (GPU, 512³) |");
+    println!(
+        "| side | voxels | ours | GEMM floor | ours / floor | ours GFLOP/s | paper (GPU, 512³) |"
+    );
     println!("|---|---|---|---|---|---|---|");
     for &n in &sides {
         let voxels = n * n * n;

@@ -10,17 +10,7 @@ use ipfn::guidance::Guide;
 use ipfn::io::read_npy;
 use ipfn::synth::{DeviceChoice, Synth};
 
-const CONFIG: &str = r#"
-batch = 4
-crop = 32
-lr = 2e-4
-critic_widths = [16, 32, 64, 64]
-hidden_layers = 4
-width = 32
-checkpoint_every = 100
-preview_every = 100
-log_every = 100
-"#;
+use common::SMALL_CONFIG as CONFIG;
 
 /// Mean of the first channel over the left and the right third of `[h, w, c]` values.
 fn left_right(values: &[f32], w: usize, c: usize) -> (f64, f64) {

@@ -15,18 +15,7 @@ use ipfn::maps::MapSet;
 use ipfn::synth::Synth;
 use ipfn::train::{TrainConfig, Trainer};
 
-/// Small enough to train 300 iterations in well under a minute on 2 cores.
-const CONFIG: &str = r#"
-batch = 4
-crop = 32
-lr = 2e-4
-critic_widths = [16, 32, 64, 64]
-hidden_layers = 4
-width = 32
-checkpoint_every = 100
-preview_every = 100
-log_every = 100
-"#;
+use common::SMALL_CONFIG as CONFIG;
 
 const MAPS: &str = "mat/albedo.png,mat/normal.png,mat/roughness.png,mat/height.png";
 

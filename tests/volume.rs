@@ -4,11 +4,11 @@
 mod common;
 
 use common::{assert_error, ipfn, stderr};
-use npyz::WriterBuilder;
 use ipfn::checkpoint::Checkpoint;
 use ipfn::generator::{GeneratorConfig, GeneratorWeights};
 use ipfn::io::{read_npy, read_sdf_volume};
 use ipfn::synth::Synth;
+use npyz::WriterBuilder;
 
 fn model_3d() -> (GeneratorConfig, GeneratorWeights) {
     let config = GeneratorConfig::new()

@@ -101,3 +101,17 @@ pub fn assert_error(out: &Output, needles: &[&str]) {
         );
     }
 }
+
+/// A small model and critic for end-to-end training tests that must learn something in
+/// about 30 s on 2 cores (crop 32, 4x32 generator).
+pub const SMALL_CONFIG: &str = r#"
+batch = 4
+crop = 32
+lr = 2e-4
+critic_widths = [16, 32, 64, 64]
+hidden_layers = 4
+width = 32
+checkpoint_every = 100
+preview_every = 100
+log_every = 100
+"#;
