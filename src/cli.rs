@@ -982,17 +982,23 @@ fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> 
     if depth == 0 {
         return Err(input_error!("--depth 0: must be at least 1"));
     }
-    if args.tile || args.mirror || args.guide.is_some() {
+    if args.mirror || args.guide.is_some() {
         return Err(input_error!(
-            "--tile, --mirror and --guide are for images; volumes do not support them yet"
+            "--mirror and --guide are for images; volumes do not support them yet"
         ));
     }
     crate::io::check_destination(&args.out)?;
     let model = choose_model(args.model.as_deref(), Path::new("."))?;
-    let painter = Synth::new(model.config, model.weights)
+    let mut builder = Synth::new(model.config, model.weights)
         .seed(args.seed)
-        .zoom(args.zoom)
-        .volume_painter()?;
+        .zoom(args.zoom);
+    if args.tile {
+        builder = builder.tile_volume(depth, height, width);
+    }
+    let painter = builder.volume_painter()?;
+    if let (Some(t), false) = (painter.tile_adjustment(), args.quiet) {
+        eprintln!("{}", t.describe());
+    }
     let start = Instant::now();
     painter.write_npy(&args.out, depth, height, width, DEFAULT_BAND_PIXELS, |_| {})?;
     if !args.quiet {

@@ -193,8 +193,13 @@ impl TileAdjustment {
             .iter()
             .map(|s| format!("{:+.2}%", 100.0 * (s / self.latent_scale_trained - 1.0)))
             .collect();
+        let axes = if self.k_used.len() == 3 {
+            "depth, rows, cols"
+        } else {
+            "rows, cols"
+        };
         format!(
-            "tile: K snapped {} (rows, cols); latent lattice {:?} cells, scale moved {}",
+            "tile: K snapped {} ({axes}); latent lattice {:?} cells, scale moved {}",
             moved.join(", "),
             self.lattice_period,
             lat.join(", ")
@@ -214,6 +219,7 @@ pub struct Synth {
     mirror: Option<[usize; 2]>,
     noise_scale: f64,
     guide: Option<(Guide, [usize; 2])>,
+    tile_volume: Option<[usize; 3]>,
     device: DeviceChoice,
 }
 
@@ -230,6 +236,7 @@ impl Synth {
             mirror: None,
             noise_scale: 1.0,
             guide: None,
+            tile_volume: None,
             device: DeviceChoice::Cpu,
         }
     }
@@ -278,6 +285,13 @@ impl Synth {
     /// whose top-left pixel is the offset.
     pub fn guide(mut self, guide: Guide, width: usize, height: usize) -> Self {
         self.guide = Some((guide, [height, width]));
+        self
+    }
+
+    /// `--tile` with `--depth`: make a volume exactly periodic with `depth x height x width`
+    /// voxels.
+    pub fn tile_volume(mut self, depth: usize, height: usize, width: usize) -> Self {
+        self.tile_volume = Some([depth, height, width]);
         self
     }
 
@@ -332,28 +346,15 @@ impl Synth {
         let mut latent_scale = vec![noise_latent_scale; 2];
         let mut tile = None;
         if let Some(period) = self.tile {
-            if period.contains(&0) {
-                return Err(input_error!("--tile: tile size must be at least 1 pixel"));
-            }
-            let k_trained = weights.k.clone();
-            let mut lattice_period = Vec::new();
-            for axis in 0..2 {
-                let span = period[axis] as f64 * grid.spacing;
-                let k = k_trained[axis] as f64;
-                let cycles = (span / (2.0 * k.abs())).round().max(1.0);
-                weights.k[axis] = (span / (2.0 * cycles)).copysign(k) as f32;
-                let cells = (span * noise_latent_scale as f64).round().max(1.0);
-                latent_scale[axis] = (cells / span) as f32;
-                lattice_period.push(cells as i64);
-            }
-            field = field.periodic(&lattice_period);
-            tile = Some(TileAdjustment {
-                k_trained,
-                k_used: weights.k.clone(),
-                latent_scale_trained: noise_latent_scale,
-                latent_scale_used: latent_scale.clone(),
-                lattice_period,
-            });
+            let adjustment = snap_to_tile(
+                &period,
+                grid.spacing,
+                &mut weights.k,
+                noise_latent_scale,
+                &mut latent_scale,
+            )?;
+            field = field.periodic(&adjustment.lattice_period);
+            tile = Some(adjustment);
         }
         let engine = match self.device.burn_device()? {
             None => Engine::Fused(FusedGenerator::new(weights)),
@@ -375,6 +376,40 @@ impl Synth {
             guide: self.guide,
         })
     }
+}
+
+/// Makes the generator exactly periodic with `period` pixels (or voxels) per axis: snaps K so
+/// the tile spans a whole number of periods of every octave, and the latent lattice scale so it
+/// spans whole lattice cells. Returns what moved; the caller wraps the lattice with
+/// `lattice_period`.
+fn snap_to_tile(
+    period: &[usize],
+    spacing: f64,
+    k: &mut [f32],
+    latent_scale_trained: f32,
+    latent_scale: &mut [f32],
+) -> Result<TileAdjustment> {
+    if period.contains(&0) {
+        return Err(input_error!("--tile: tile size must be at least 1 pixel"));
+    }
+    let k_trained = k.to_vec();
+    let mut lattice_period = Vec::new();
+    for axis in 0..period.len() {
+        let span = period[axis] as f64 * spacing;
+        let ka = k_trained[axis] as f64;
+        let cycles = (span / (2.0 * ka.abs())).round().max(1.0);
+        k[axis] = (span / (2.0 * cycles)).copysign(ka) as f32;
+        let cells = (span * latent_scale_trained as f64).round().max(1.0);
+        latent_scale[axis] = (cells / span) as f32;
+        lattice_period.push(cells as i64);
+    }
+    Ok(TileAdjustment {
+        k_trained,
+        k_used: k.to_vec(),
+        latent_scale_trained,
+        latent_scale_used: latent_scale.to_vec(),
+        lattice_period,
+    })
 }
 
 /// A prepared synthesis: renders regions of the plane.
@@ -622,6 +657,7 @@ pub struct VolumePainter {
     latent_scale: Vec<f32>,
     grid: PixelGrid,
     channels: usize,
+    tile: Option<TileAdjustment>,
 }
 
 impl Synth {
@@ -642,16 +678,33 @@ impl Synth {
         }
         if self.tile.is_some() || self.mirror.is_some() || self.guide.is_some() {
             return Err(input_error!(
-                "--tile, --mirror and --guide are for images; volumes do not support them yet"
+                "--mirror and --guide are for images; volumes do not support them yet"
             ));
+        }
+        let grid = PixelGrid::new(self.config.crop, self.zoom);
+        let mut weights = self.weights;
+        let mut field =
+            LatentField::hashed(self.seed, 3, self.config.latent_dim).with_sigma(self.config.sigma);
+        let mut latent_scale = vec![self.config.latent_scale; 3];
+        let mut tile = None;
+        if let Some(period) = self.tile_volume {
+            let adjustment = snap_to_tile(
+                &period,
+                grid.spacing,
+                &mut weights.k,
+                self.config.latent_scale,
+                &mut latent_scale,
+            )?;
+            field = field.periodic(&adjustment.lattice_period);
+            tile = Some(adjustment);
         }
         Ok(VolumePainter {
             channels: self.config.channels,
-            field: LatentField::hashed(self.seed, 3, self.config.latent_dim)
-                .with_sigma(self.config.sigma),
-            latent_scale: vec![self.config.latent_scale; 3],
-            grid: PixelGrid::new(self.config.crop, self.zoom),
-            generator: FusedGenerator::new(self.weights),
+            field,
+            latent_scale,
+            grid,
+            generator: FusedGenerator::new(weights),
+            tile,
         })
     }
 }
@@ -659,6 +712,11 @@ impl Synth {
 impl VolumePainter {
     pub fn channels(&self) -> usize {
         self.channels
+    }
+
+    /// What `tile_volume` changed, if it was asked for.
+    pub fn tile_adjustment(&self) -> Option<&TileAdjustment> {
+        self.tile.as_ref()
     }
 
     /// Renders the `depth x height x width` box whose first voxel is `(z, y, x)`.

@@ -100,6 +100,43 @@ fn volume_synthesis_is_the_same_in_any_chunking() {
 }
 
 #[test]
+fn tiled_volumes_repeat_on_every_axis() {
+    let (config, weights) = model_3d();
+    let (dd, h, w) = (12, 10, 14);
+    let painter = Synth::new(config.clone(), weights.clone())
+        .seed(5)
+        .tile_volume(dd, h, w)
+        .volume_painter()
+        .unwrap();
+    assert_eq!(painter.tile_adjustment().unwrap().lattice_period.len(), 3);
+    // One voxel past the tile on each axis equals the first voxel of that axis.
+    let v = painter.render([0, 0, 0], dd + 1, h + 1, w + 1);
+    let at = |z: usize, y: usize, x: usize| v[(z * (h + 1) + y) * (w + 1) + x];
+    let mut worst = 0f32;
+    for a in 0..dd {
+        for b in 0..h {
+            worst = worst.max((at(a, b, w) - at(a, b, 0)).abs());
+        }
+        for c in 0..w {
+            worst = worst.max((at(a, h, c) - at(a, 0, c)).abs());
+        }
+    }
+    for b in 0..h {
+        for c in 0..w {
+            worst = worst.max((at(dd, b, c) - at(0, b, c)).abs());
+        }
+    }
+    assert!(worst < 1e-4, "tiled volume wraps with a step of {worst}");
+    // Without --tile it does not wrap.
+    let plain = Synth::new(config, weights)
+        .seed(5)
+        .volume_painter()
+        .unwrap()
+        .render([0, 0, 0], dd + 1, 1, 1);
+    assert!((plain[dd] - plain[0]).abs() > 1e-4);
+}
+
+#[test]
 fn synth_depth_writes_a_volume_and_refuses_mismatches() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
