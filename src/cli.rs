@@ -28,10 +28,12 @@ pub const SHIPPED_HONEYCOMB: &[u8] = include_bytes!("../exemplars/honeycomb.ipfn
     version,
     about = "Implicit Periodic Field Network: learn a pattern from one exemplar, paint it at any size",
     long_about = "Implicit Periodic Field Network (Chen et al., CVPR 2022).\n\n\
-        `ipfn synth` paints new, varied, optionally seamless versions of a learned pattern at any \
-        size, on the CPU or a GPU. `ipfn import` converts a generator trained by the authors' \
-        PyTorch code. With no model given, synth uses the most recent model in the working \
-        folder, else the shipped honeycomb model."
+        `ipfn train` learns a pattern from one exemplar (an image, or a set of material maps). \
+        `ipfn synth` paints new, varied, optionally seamless versions of it at any size, on the \
+        CPU or a GPU. `ipfn eval` scores a model (SIFID, seams, period); `ipfn bench` times this \
+        machine; `ipfn import` converts a generator trained by the authors' PyTorch code. With no \
+        model given, synth uses the most recent model in the working folder, else the shipped \
+        honeycomb model."
 )]
 pub struct Cli {
     #[command(subcommand)]
@@ -46,7 +48,8 @@ pub enum Command {
     Train(Box<TrainArgs>),
     /// Convert an authors' PyTorch generator (netG.pth) into an ipfn model file.
     Import(ImportArgs),
-    /// Draw one of the procedural exemplars (bricks, weave, stripes) to a PNG.
+    /// Draw a procedural exemplar: bricks, weave, stripes, graded (PNG), material (a map set) or
+    /// gyroid (an SDF volume).
     Draw(DrawArgs),
     /// Score a model against its exemplar (SIFID, seam score, period), or two images (SIFID).
     Eval(EvalArgs),
