@@ -287,6 +287,10 @@ pub struct SynthArgs {
     /// Depth in voxels: paint a volume (`[D, H, W, C]` .npy) with a 3D model.
     #[arg(long, value_name = "D")]
     pub depth: Option<usize>,
+    /// With --depth: also write the zero level set of the volume's first channel as a mesh
+    /// (.obj or .ply), extracted slab by slab and welded.
+    #[arg(long, value_name = "PATH", requires = "depth")]
+    pub mesh: Option<PathBuf>,
     /// Seed of the latent field: each seed paints a different sample.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -1002,8 +1006,33 @@ fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> 
     if let (Some(t), false) = (painter.tile_adjustment(), args.quiet) {
         eprintln!("{}", t.describe());
     }
+    if let Some(mesh) = &args.mesh {
+        let ext = mesh
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        if ext != "obj" && ext != "ply" {
+            return Err(input_error!(
+                "{}: meshes are written as .obj or .ply",
+                mesh.display()
+            ));
+        }
+        crate::io::check_destination(mesh)?;
+    }
     let start = Instant::now();
     painter.write_npy(&args.out, depth, height, width, DEFAULT_BAND_PIXELS, |_| {})?;
+    if let Some(path) = &args.mesh {
+        let mesh = painter.mesh(depth, height, width, DEFAULT_BAND_PIXELS);
+        crate::mesh::write_mesh(&mesh, path)?;
+        if !args.quiet {
+            eprintln!(
+                "wrote {}: {} vertices, {} triangles",
+                path.display(),
+                mesh.positions.len(),
+                mesh.triangles.len()
+            );
+        }
+    }
     if !args.quiet {
         eprintln!(
             "model: {}\nwrote {} ({width}x{height}x{depth} voxels, {} channels, seed {}) in {:.2} s",

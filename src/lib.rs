@@ -14,6 +14,7 @@
 //! - [`checkpoint`]: model files, and import of the authors' PyTorch generators.
 //! - [`io`]: arrays and images in and out, written atomically.
 //! - [`maps`]: material map sets (albedo, normal, height, ...) learned and painted together.
+//! - [`mesh`]: zero level sets of volumes as meshes (surface nets), welded across chunks.
 //! - [`metrics`]: SIFID (Keras InceptionV3 stem), seam score of tiles, dominant periods.
 //! - [`bench`]: `ipfn bench`, speed beside floors measured in the same run.
 //! - [`cli`]: the `ipfn` command line.
@@ -29,6 +30,7 @@ pub mod guidance;
 pub mod io;
 pub mod latent;
 pub mod maps;
+pub mod mesh;
 pub mod metrics;
 pub mod procedural;
 pub mod sample;

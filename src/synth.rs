@@ -758,6 +758,26 @@ impl VolumePainter {
         out
     }
 
+    /// The mesh of the zero level set of the first channel of the `depth x height x width`
+    /// volume at the origin, extracted in chunks of about `slab_voxels` voxels and welded.
+    pub fn mesh(
+        &self,
+        depth: usize,
+        height: usize,
+        width: usize,
+        slab_voxels: usize,
+    ) -> crate::mesh::Mesh {
+        let slices = (slab_voxels / (height * width).max(1)).max(1);
+        let mut builder = crate::mesh::MeshBuilder::new(height, width);
+        let c = self.channels;
+        for (start, end) in crate::mesh::chunk_starts(depth, slices) {
+            let values = self.render([start as i64, 0, 0], end - start + 1, height, width);
+            let sdf: Vec<f32> = values.chunks_exact(c).map(|v| v[0]).collect();
+            builder.add_chunk(&sdf, start);
+        }
+        builder.finish()
+    }
+
     /// Writes the `depth x height x width` volume at the origin to `.npy` (`[D, H, W, C]`, raw
     /// generator values), in slabs of whole depth slices of about `slab_voxels` voxels,
     /// calling `progress(slices_done)` after each.

@@ -17,7 +17,15 @@ fn model_3d() -> (GeneratorConfig, GeneratorWeights) {
         .with_hidden_layers(3)
         .with_width(24)
         .with_crop(32);
-    let weights = GeneratorWeights::random(&config);
+    let mut weights = GeneratorWeights::random(&config);
+    // Centre the output on 0, so the volume has a zero level set to mesh.
+    let probe = Synth::new(config.clone(), weights.clone())
+        .seed(0)
+        .volume_painter()
+        .unwrap()
+        .render([0, 0, 0], 8, 8, 8);
+    let mean = probe.iter().sum::<f32>() / probe.len() as f32;
+    weights.layers.last_mut().unwrap().bias[0] -= mean.atanh();
     (config, weights)
 }
 
@@ -155,13 +163,56 @@ fn synth_depth_writes_a_volume_and_refuses_mismatches() {
     assert!(out.status.success(), "{}", stderr(&out));
     let (shape, values) = read_npy(&d.join("v.npy")).unwrap();
     assert_eq!(shape, [7, 10, 12, 1]);
-    let expected = Synth::new(config, weights)
+    let expected = Synth::new(config.clone(), weights.clone())
         .seed(4)
         .volume_painter()
         .unwrap()
         .render([0, 0, 0], 7, 10, 12);
     assert_eq!(values, expected);
 
+    // --mesh: the zero level set, as OBJ or PLY, the same triangles the library extracts.
+    let out = ipfn(
+        d,
+        &[
+            "synth", "--model", "m3.ipfn", "--size", "16", "--depth", "9", "--seed", "4", "--out",
+            "w.npy", "--mesh", "w.obj",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let obj = std::fs::read_to_string(d.join("w.obj")).unwrap();
+    let faces = obj.lines().filter(|l| l.starts_with("f ")).count();
+    let vertices = obj.lines().filter(|l| l.starts_with("v ")).count();
+    let expected = Synth::new(config.clone(), weights.clone())
+        .seed(4)
+        .volume_painter()
+        .unwrap()
+        .mesh(9, 16, 16, 1 << 20);
+    assert_eq!(
+        (vertices, faces),
+        (expected.positions.len(), expected.triangles.len())
+    );
+    let ply = ipfn(
+        d,
+        &[
+            "synth", "--model", "m3.ipfn", "--size", "16", "--depth", "9", "--out", "p.npy",
+            "--mesh", "p.ply",
+        ],
+    );
+    assert!(ply.status.success(), "{}", stderr(&ply));
+    assert!(
+        std::fs::read_to_string(d.join("p.ply"))
+            .unwrap()
+            .starts_with("ply\n")
+    );
+    assert_error(
+        &ipfn(
+            d,
+            &[
+                "synth", "--model", "m3.ipfn", "--depth", "4", "--out", "q.npy", "--mesh", "q.stl",
+            ],
+        ),
+        &["q.stl", ".obj or .ply"],
+    );
     assert_error(
         &ipfn(d, &["synth", "--model", "m3.ipfn", "--out", "x.png"]),
         &["2D model", "--depth"],
