@@ -224,8 +224,7 @@ mod tests {
             );
             assert_eq!(by_cells(&chunked), by_cells(&whole), "slabs of {slices}");
             // Open edges only where the surface leaves the volume's box, never at a seam.
-            let outer =
-                |c: [u32; 3]| c.iter().any(|&v| v == 0) || c.iter().any(|&v| v as usize == n - 2);
+            let outer = |c: [u32; 3]| c.contains(&0) || c.contains(&((n - 2) as u32));
             let open = boundary_edges(&chunked);
             assert!(!open.is_empty(), "the gyroid is cut by the box");
             for [a, b] in open {
