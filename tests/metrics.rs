@@ -238,7 +238,7 @@ fn eval_scores_the_shipped_model_against_its_exemplar() {
         "model {mean}, bricks {bricks}"
     );
     // --tile samples wrap without a visible seam (one seamless line scores 0.7 to 1.5 depending
-    // on where it falls in the pattern; four tiles average that); the photo itself does not.
+    // on where it falls in the pattern; four tiles average that); the exemplar image, not a tile, does not.
     let seam = report["seam_model_tile"]["overall"].as_f64().unwrap();
     assert!((0.75..1.3).contains(&seam), "tile seam score {seam}");
     let photo_seam = report["seam_exemplar"]["overall"].as_f64().unwrap();
