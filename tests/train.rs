@@ -5,7 +5,7 @@ mod common;
 
 use std::path::Path;
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use burn::prelude::*;
 use common::{assert_error, ipfn, stderr};
@@ -111,7 +111,7 @@ fn resume_continues_bit_exactly() {
 
 /// Starts a long run and waits until it has written `rows` metrics rows.
 fn start_and_wait(d: &Path, out: &str, rows: usize) -> std::process::Child {
-    let child = Command::new(env!("CARGO_BIN_EXE_ipfn"))
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ipfn"))
         .args([
             "train",
             "ex.png",
@@ -126,16 +126,15 @@ fn start_and_wait(d: &Path, out: &str, rows: usize) -> std::process::Child {
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    let start = Instant::now();
     while std::fs::read_to_string(d.join(out).join("metrics.csv"))
         .map(|s| s.lines().count())
         .unwrap_or(0)
         <= rows
     {
-        assert!(
-            start.elapsed() < Duration::from_secs(120),
-            "training made no progress"
-        );
+        // Not a timing assertion: the run must still be going while we wait for its rows.
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("training exited ({status}) before writing {rows} metrics rows");
+        }
         std::thread::sleep(Duration::from_millis(20));
     }
     child
