@@ -295,6 +295,8 @@ pub struct Trainer {
     source: ExemplarSource,
     /// The maps of a map-set exemplar (stored in every model file, so synth writes one file each).
     maps: Option<MapSet>,
+    /// The guidance line of a guided run (`config.guide`, parsed once).
+    guide: Option<Guide>,
     run_dir: PathBuf,
     device: Device,
     generator: Generator,
@@ -416,6 +418,7 @@ impl Trainer {
         let source = source.into();
         let (exemplar, maps) = source.load(config.resize)?;
         config.validate(&exemplar, source.main_path())?;
+        let guide = config.guide()?;
         let device = device.clone().autodiff();
         let generator = initialise(
             config.generator_config(exemplar.channels).init(&device),
@@ -434,6 +437,7 @@ impl Trainer {
             exemplar,
             source,
             maps,
+            guide,
             run_dir: run_dir.to_path_buf(),
             device,
             generator,
@@ -466,6 +470,7 @@ impl Trainer {
             ));
         }
         config.validate(&exemplar, source.main_path())?;
+        let guide = config.guide()?;
         let device = device.clone().autodiff();
         let (gen_config, weights) = GeneratorWeights::read_from(&ckpt)?;
         if gen_config != config.generator_config(exemplar.channels) {
@@ -493,6 +498,7 @@ impl Trainer {
             exemplar,
             source,
             maps,
+            guide,
             run_dir: run_dir.to_path_buf(),
             device,
             generator,
@@ -528,24 +534,30 @@ impl Trainer {
         )
     }
 
+    /// The top-left pixel `(row, col)` of a random crop of the exemplar for sample `s`, drawn
+    /// from stream `purpose`.
+    fn crop_origin(&self, purpose: u64, s: usize, counters: &[u64]) -> (usize, usize) {
+        let (crop, ex) = (self.config.crop, &self.exemplar);
+        let draw = |axis: u64, range: usize| {
+            let mut k = vec![purpose, s as u64, axis];
+            k.extend_from_slice(counters);
+            ((uniform(self.config.seed, &k) * range as f32) as usize).min(range - 1)
+        };
+        (draw(0, ex.height - crop + 1), draw(1, ex.width - crop + 1))
+    }
+
     /// Random real crops for step `step` of the current iteration.
     ///
     /// # Shapes
     /// - output: `[batch, channels, crop, crop]`
     pub fn real_batch(&self, counters: &[u64]) -> Tensor<4> {
         let (b, crop, c) = (self.config.batch, self.config.crop, self.exemplar.channels);
-        let guide = self.config.guide().expect("validated");
+        let guide = &self.guide;
         let cg = c + guide.is_some() as usize; // + the guidance channel
         let ex = &self.exemplar;
         let mut data = vec![0f32; b * cg * crop * crop];
         for (s, sample) in data.chunks_mut(cg * crop * crop).enumerate() {
-            let draw = |axis: u64, range: usize| {
-                let mut k = vec![stream::REAL_CROP, s as u64, axis];
-                k.extend_from_slice(counters);
-                ((uniform(self.config.seed, &k) * range as f32) as usize).min(range - 1)
-            };
-            let top = draw(0, ex.height - crop + 1);
-            let left = draw(1, ex.width - crop + 1);
+            let (top, left) = self.crop_origin(stream::REAL_CROP, s, counters);
             for ch in 0..c {
                 for y in 0..crop {
                     for x in 0..crop {
@@ -554,7 +566,7 @@ impl Trainer {
                     }
                 }
             }
-            if let Some(g) = &guide {
+            if let Some(g) = guide {
                 // The crop's slice of g over the whole exemplar.
                 for y in 0..crop {
                     for x in 0..crop {
@@ -570,17 +582,11 @@ impl Trainer {
     /// The guidance slice `[crop * crop]` of generated sample `s`: g over the exemplar at a
     /// random crop position (empty for an unguided run).
     fn fake_guide(&self, s: usize, counters: &[u64]) -> Vec<f32> {
-        let Some(g) = self.config.guide().expect("validated") else {
+        let Some(g) = &self.guide else {
             return Vec::new();
         };
         let (crop, ex) = (self.config.crop, &self.exemplar);
-        let draw = |axis: u64, range: usize| {
-            let mut k = vec![stream::GUIDE, s as u64, axis];
-            k.extend_from_slice(counters);
-            ((uniform(self.config.seed, &k) * range as f32) as usize).min(range - 1)
-        };
-        let top = draw(0, ex.height - crop + 1);
-        let left = draw(1, ex.width - crop + 1);
+        let (top, left) = self.crop_origin(stream::GUIDE, s, counters);
         (0..crop * crop)
             .map(|q| {
                 g.at(
@@ -873,7 +879,7 @@ impl Trainer {
         let mut synth = Synth::new(config, weights)
             .seed(derive_seed(self.config.seed, &[stream::PREVIEW]))
             .offset(-crop, -crop);
-        if let Some(g) = self.config.guide()? {
+        if let Some(g) = self.guide.clone() {
             synth = synth.guide(g, side, side); // the training line over the preview's frame
         }
         let pixels = synth.painter()?.render(0, 0, side, side);
