@@ -22,6 +22,7 @@ use rayon::prelude::*;
 
 use crate::checkpoint::Checkpoint;
 use crate::error::Result;
+use crate::generator::fused::matmul_into;
 use crate::generator::{GeneratorConfig, GeneratorWeights};
 use crate::synth::{DeviceChoice, Synth};
 use crate::train::{TrainConfig, Trainer};
@@ -75,30 +76,7 @@ pub fn gemm_floor(shapes: &[(usize, usize)], points: usize) {
         || (vec![0.5f32; chunk * widest], vec![0f32; chunk * widest]),
         |(a, b), _| {
             for (w, &(k, n)) in weights.iter().zip(shapes) {
-                // SAFETY: a holds chunk x k, w holds k x n, b holds chunk x n f32, row-major.
-                unsafe {
-                    gemm::gemm(
-                        chunk,
-                        n,
-                        k,
-                        b.as_mut_ptr(),
-                        1,
-                        n as isize,
-                        false,
-                        a.as_ptr(),
-                        1,
-                        k as isize,
-                        w.as_ptr(),
-                        1,
-                        n as isize,
-                        0.0,
-                        1.0,
-                        false,
-                        false,
-                        false,
-                        gemm::Parallelism::None,
-                    );
-                }
+                matmul_into(b, a, w, chunk, n, k);
                 std::mem::swap(a, b);
             }
         },

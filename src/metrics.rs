@@ -25,6 +25,7 @@ use rayon::prelude::*;
 use safetensors::SafeTensors;
 
 use crate::error::{Error, Result};
+use crate::generator::fused::matmul_into;
 use crate::input_error;
 
 /// The converted stem, embedded in the binary (about 690 KB).
@@ -94,30 +95,7 @@ impl ConvBlock {
                         }
                     }
                 }
-                // SAFETY: the slices hold ow x depth, depth x cout and ow x cout f32, row-major.
-                unsafe {
-                    gemm::gemm(
-                        ow,
-                        self.cout,
-                        depth,
-                        out_row.as_mut_ptr(),
-                        1,
-                        self.cout as isize,
-                        false,
-                        cols.as_ptr(),
-                        1,
-                        depth as isize,
-                        self.weight.as_ptr(),
-                        1,
-                        self.cout as isize,
-                        0.0,
-                        1.0,
-                        false,
-                        false,
-                        false,
-                        gemm::Parallelism::None,
-                    );
-                }
+                matmul_into(out_row, &cols, &self.weight, ow, self.cout, depth);
                 for px in out_row.chunks_exact_mut(self.cout) {
                     for (v, b) in px.iter_mut().zip(&self.bias) {
                         *v = (*v + b).max(0.0);

@@ -13,6 +13,41 @@ use crate::latent::LatentField;
 /// Points per chunk: 512 x 128 floats per activation buffer (256 KiB) stays in L2.
 pub const CHUNK_POINTS: usize = 512;
 
+/// `dst[m, n] = lhs[m, k] · rhs[k, n]`, all row-major, on the calling thread (`gemm` crate):
+/// the one matrix product of the CPU paths (the fused generator, the SIFID stem, the GEMM
+/// floor of the benches).
+pub fn matmul_into(dst: &mut [f32], lhs: &[f32], rhs: &[f32], m: usize, n: usize, k: usize) {
+    assert!(
+        dst.len() >= m * n && lhs.len() >= m * k && rhs.len() >= k * n,
+        "matmul_into: buffers smaller than {m}x{k} . {k}x{n}"
+    );
+    // SAFETY: the assert bounds every access at the strides given (row-major); `dst` is a
+    // unique borrow, so it aliases neither input.
+    unsafe {
+        gemm::gemm(
+            m,
+            n,
+            k,
+            dst.as_mut_ptr(),
+            1,
+            n as isize,
+            false,
+            lhs.as_ptr(),
+            1,
+            k as isize,
+            rhs.as_ptr(),
+            1,
+            n as isize,
+            0.0,
+            1.0,
+            false,
+            false,
+            false,
+            gemm::Parallelism::None,
+        );
+    }
+}
+
 /// Per-thread working memory for [`FusedGenerator::eval`].
 #[derive(Default)]
 pub struct Scratch {
@@ -94,32 +129,7 @@ impl FusedGenerator {
         let last = w.layers.len() - 1;
         for (l, layer) in w.layers.iter().enumerate() {
             let (k, m) = (layer.inputs, layer.outputs);
-            // dst[n, m] = src[n, k] . W[k, m]
-            // SAFETY: every pointer addresses a buffer of at least the stated rows x columns,
-            // with the strides given (row-major), and dst does not alias src or W.
-            unsafe {
-                gemm::gemm(
-                    n,
-                    m,
-                    k,
-                    dst.as_mut_ptr(),
-                    1,
-                    m as isize,
-                    false,
-                    src.as_ptr(),
-                    1,
-                    k as isize,
-                    layer.weight.as_ptr(),
-                    1,
-                    m as isize,
-                    0.0,
-                    1.0,
-                    false,
-                    false,
-                    false,
-                    gemm::Parallelism::None,
-                );
-            }
+            matmul_into(dst, src, &layer.weight, n, m, k); // dst[n, m] = src[n, k] . W[k, m]
             let rows = &mut dst[..n * m];
             if l < last {
                 for row in rows.chunks_exact_mut(m) {
