@@ -1007,22 +1007,24 @@ fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> 
         eprintln!("{}", t.describe());
     }
     if let Some(mesh) = &args.mesh {
-        let ext = mesh
-            .extension()
-            .map(|e| e.to_string_lossy().to_ascii_lowercase())
-            .unwrap_or_default();
-        if ext != "obj" && ext != "ply" {
-            return Err(input_error!(
-                "{}: meshes are written as .obj or .ply",
-                mesh.display()
-            ));
-        }
+        crate::mesh::MeshFormat::from_path(mesh)?;
         crate::io::check_destination(mesh)?;
     }
     let start = Instant::now();
-    painter.write_npy(&args.out, depth, height, width, DEFAULT_BAND_PIXELS, |_| {})?;
-    if let Some(path) = &args.mesh {
-        let mesh = painter.mesh(depth, height, width, DEFAULT_BAND_PIXELS);
+    let mut builder = args
+        .mesh
+        .as_ref()
+        .map(|_| crate::mesh::MeshBuilder::new(height, width));
+    painter.write_npy(
+        &args.out,
+        depth,
+        height,
+        width,
+        DEFAULT_BAND_PIXELS,
+        builder.as_mut(),
+    )?;
+    if let (Some(path), Some(builder)) = (&args.mesh, builder) {
+        let mesh = builder.finish();
         crate::mesh::write_mesh(&mesh, path)?;
         if !args.quiet {
             eprintln!(

@@ -130,23 +130,38 @@ pub fn boundary_edges(mesh: &Mesh) -> Vec<[u32; 2]> {
         .collect()
 }
 
+/// A mesh file format, chosen by the extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MeshFormat {
+    Obj,
+    Ply,
+}
+
+impl MeshFormat {
+    pub fn from_path(path: &Path) -> Result<Self> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        match ext.as_str() {
+            "obj" => Ok(Self::Obj),
+            "ply" => Ok(Self::Ply),
+            _ => Err(input_error!(
+                "{}: meshes are written as .obj or .ply",
+                path.display()
+            )),
+        }
+    }
+}
+
 /// Writes `.obj` or `.ply` (ASCII), chosen by the extension, atomically.
 pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<()> {
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    if ext != "obj" && ext != "ply" {
-        return Err(input_error!(
-            "{}: meshes are written as .obj or .ply",
-            path.display()
-        ));
-    }
+    let format = MeshFormat::from_path(path)?;
     let mut file = AtomicFile::create(path)?;
     let err = |e: std::io::Error| Error::Runtime(format!("{}: cannot write: {e}", path.display()));
     {
         let mut out = std::io::BufWriter::new(file.file());
-        if ext == "obj" {
+        if format == MeshFormat::Obj {
             writeln!(out, "# ipfn: zero level set, voxel units").map_err(err)?;
             for p in &mesh.positions {
                 writeln!(out, "v {} {} {}", p[0], p[1], p[2]).map_err(err)?;

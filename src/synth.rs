@@ -767,20 +767,20 @@ impl VolumePainter {
         width: usize,
         slab_voxels: usize,
     ) -> crate::mesh::Mesh {
-        let slices = (slab_voxels / (height * width).max(1)).max(1);
         let mut builder = crate::mesh::MeshBuilder::new(height, width);
-        let c = self.channels;
-        for (start, end) in crate::mesh::chunk_starts(depth, slices) {
-            let values = self.render([start as i64, 0, 0], end - start + 1, height, width);
-            let sdf: Vec<f32> = values.chunks_exact(c).map(|v| v[0]).collect();
-            builder.add_chunk(&sdf, start);
-        }
+        self.for_each_mesh_chunk(depth, height, width, slab_voxels, |start, _, values| {
+            builder.add_chunk(&self.first_channel(values), start);
+            Ok(())
+        })
+        .expect("meshing alone does not fail");
         builder.finish()
     }
 
     /// Writes the `depth x height x width` volume at the origin to `.npy` (`[D, H, W, C]`, raw
-    /// generator values), in slabs of whole depth slices of about `slab_voxels` voxels,
-    /// calling `progress(slices_done)` after each.
+    /// generator values), in slabs of whole depth slices of about `slab_voxels` voxels. With
+    /// `mesh`, the same renders also feed the
+    /// zero level set of the first channel into it, so every slice is rendered once (mesh
+    /// chunks share two slices with the next one; those are rendered twice).
     pub fn write_npy(
         &self,
         path: &Path,
@@ -788,19 +788,62 @@ impl VolumePainter {
         height: usize,
         width: usize,
         slab_voxels: usize,
-        mut progress: impl FnMut(usize),
+        mesh: Option<&mut crate::mesh::MeshBuilder>,
     ) -> Result<()> {
         let mut writer =
             crate::io::VolumeWriter::create(path, depth, height, width, self.channels)?;
-        let slab = (slab_voxels / (height * width).max(1)).clamp(1, depth.max(1));
-        let mut z = 0;
-        while z < depth {
-            let n = slab.min(depth - z);
-            writer.write_slab(&self.render([z as i64, 0, 0], n, height, width))?;
-            z += n;
-            progress(z);
+        let slice = height * width * self.channels;
+        match mesh {
+            Some(builder) if depth >= 2 => {
+                self.for_each_mesh_chunk(
+                    depth,
+                    height,
+                    width,
+                    slab_voxels,
+                    |start, end, values| {
+                        builder.add_chunk(&self.first_channel(values), start);
+                        // The next chunk starts at end - 1: write up to it, or to the end.
+                        let last = if end == depth - 1 { end + 1 } else { end - 1 };
+                        writer.write_slab(&values[..(last - start) * slice])
+                    },
+                )?;
+            }
+            _ => {
+                let slab = (slab_voxels / (height * width).max(1)).clamp(1, depth.max(1));
+                let mut z = 0;
+                while z < depth {
+                    let n = slab.min(depth - z);
+                    writer.write_slab(&self.render([z as i64, 0, 0], n, height, width))?;
+                    z += n;
+                }
+            }
         }
         writer.finish()
+    }
+
+    /// Renders the mesh chunks of [`crate::mesh::chunk_starts`] (about `slab_voxels` voxels
+    /// each) and hands each to `f(start, end, values)`.
+    fn for_each_mesh_chunk(
+        &self,
+        depth: usize,
+        height: usize,
+        width: usize,
+        slab_voxels: usize,
+        mut f: impl FnMut(usize, usize, &[f32]) -> Result<()>,
+    ) -> Result<()> {
+        let slices = (slab_voxels / (height * width).max(1)).max(1);
+        for (start, end) in crate::mesh::chunk_starts(depth, slices) {
+            f(
+                start,
+                end,
+                &self.render([start as i64, 0, 0], end - start + 1, height, width),
+            )?;
+        }
+        Ok(())
+    }
+
+    fn first_channel(&self, values: &[f32]) -> Vec<f32> {
+        values.chunks_exact(self.channels).map(|v| v[0]).collect()
     }
 }
 

@@ -107,6 +107,36 @@ fn volume_synthesis_is_the_same_in_any_chunking() {
     assert!(whole[..h * w] != whole[h * w..2 * h * w]);
 }
 
+/// The volume and its mesh come from one pass of overlapping mesh chunks: the file still holds
+/// every slice once, equal to a plain render, and the mesh equals the mesh alone.
+#[test]
+fn volume_and_mesh_in_one_pass() {
+    let dir = tempfile::tempdir().unwrap();
+    let (config, weights) = model_3d();
+    let painter = Synth::new(config, weights)
+        .seed(3)
+        .volume_painter()
+        .unwrap();
+    let (dd, h, w) = (11, 9, 10);
+    for slab_slices in [1, 2, 4, 20] {
+        let path = dir.path().join(format!("v{slab_slices}.npy"));
+        let mut builder = ipfn::mesh::MeshBuilder::new(h, w);
+        painter
+            .write_npy(&path, dd, h, w, slab_slices * h * w, Some(&mut builder))
+            .unwrap();
+        let (shape, values) = read_npy(&path).unwrap();
+        assert_eq!(shape, [dd, h, w, 1]);
+        assert_eq!(
+            values,
+            painter.render([0, 0, 0], dd, h, w),
+            "slabs of {slab_slices}"
+        );
+        let mesh = builder.finish();
+        assert_eq!(mesh, painter.mesh(dd, h, w, slab_slices * h * w));
+        assert!(!mesh.triangles.is_empty());
+    }
+}
+
 #[test]
 fn tiled_volumes_repeat_on_every_axis() {
     let (config, weights) = model_3d();
