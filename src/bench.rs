@@ -8,9 +8,12 @@
 //!   - *matmul floor* (a burn device): a chain of plain burn matmuls + ReLU on that device, in
 //!     the chunks our burn path uses there (4,096 points on flex, 65,536 on a GPU): what the
 //!     framework's own kernels do for these shapes;
-//! - training: one iteration (5 critic + 5 generator steps, batch 4, crop 128, a 256² RGB
-//!   exemplar), after one warm-up iteration, beside the authors' PyTorch code measured on the
-//!   2-core reference machine (not re-run here; DESIGN.md).
+//! - training: one iteration (5 critic + 5 generator steps, batch 4 (or `batches`), crop 128, a
+//!   256² RGB exemplar), after one warm-up iteration, beside the authors' PyTorch code measured
+//!   on the 2-core reference machine (DESIGN.md) or, on a GPU, on one H100 (issue 6); neither is
+//!   re-run here;
+//! - volumes (`volumes`): cubes painted in slabs by a 3D generator of the paper's size, beside
+//!   the same floors and the paper's 22.9 s for 512³.
 //!
 //! The benches in `benches/` print the same figures in more detail.
 
@@ -31,6 +34,12 @@ use crate::train::{TrainConfig, Trainer};
 pub const AUTHORS_SYNTH_1024_S: f64 = 21.9;
 /// The authors' PyTorch code on the 2-core reference machine: one training iteration, batch 4.
 pub const AUTHORS_ITERATION_S: f64 = 40.6;
+/// The authors' PyTorch code (PyTorch 2.11) on one H100, measured for issue 6: synth at
+/// 1024² and 2048², and one training iteration at batch 4 and 8.
+pub const AUTHORS_H100_SYNTH_S: [(usize, f64); 2] = [(1024, 0.0143), (2048, 0.0527)];
+pub const AUTHORS_H100_ITERATION_S: [(usize, f64); 2] = [(4, 0.105), (8, 0.145)];
+/// The paper's 512³ volume synthesis (on a GPU, as reported; not re-run).
+pub const PAPER_VOLUME_512_S: f64 = 22.9;
 
 /// Median of `runs` timed calls after one warm-up call.
 pub fn time(runs: usize, mut f: impl FnMut()) -> f64 {
@@ -126,6 +135,14 @@ pub struct BenchPlan {
     pub runs: usize,
     /// Also time one training iteration on each device that trains (flex, wgpu, cuda).
     pub train: bool,
+    /// Batch sizes of the training iterations.
+    pub batches: Vec<usize>,
+    /// Also paint cubes of these sides with a 3D generator of the paper's size (random weights).
+    pub volumes: Vec<usize>,
+}
+
+fn is_gpu(device: DeviceChoice) -> bool {
+    matches!(device, DeviceChoice::Wgpu | DeviceChoice::Cuda)
 }
 
 /// Runs the plan, calling `row` as each row is measured.
@@ -166,6 +183,17 @@ pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
                 floor,
                 floor_s: Some(floor_s),
             });
+            if let Some(&(_, authors)) = AUTHORS_H100_SYNTH_S.iter().find(|(s, _)| *s == n)
+                && is_gpu(device)
+            {
+                emit(Row {
+                    work: format!("synth {n}²"),
+                    device: "authors' PyTorch on one H100 (issue 6, not re-run)".into(),
+                    ours_s: authors,
+                    floor: format!("ours is {:.2}x its time", ours / authors),
+                    floor_s: None,
+                });
+            }
             if n == 1024 && device == DeviceChoice::Cpu {
                 emit(Row {
                     work: "synth 1024²".into(),
@@ -174,6 +202,62 @@ pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
                     floor: format!("{:.1}x slower than ours", AUTHORS_SYNTH_1024_S / ours),
                     floor_s: None,
                 });
+            }
+        }
+    }
+    if !plan.volumes.is_empty() {
+        let config = GeneratorConfig::new()
+            .with_dims(3)
+            .with_channels(1)
+            .with_crop(64);
+        let weights = GeneratorWeights::random(&config);
+        let shapes = config.layer_shapes();
+        for &device in &plan.devices {
+            let painter = Synth::new(config.clone(), weights.clone())
+                .seed(1)
+                .device(device)
+                .volume_painter()?;
+            let burn_device = device.burn_device()?;
+            for &n in &plan.volumes {
+                // Slabs of about a million voxels, as `ipfn synth --depth` renders them.
+                let slab = (crate::synth::DEFAULT_BAND_PIXELS).div_ceil(n * n).max(1);
+                let ours = time(plan.runs.min(2), || {
+                    let mut z = 0;
+                    while z < n {
+                        let d = slab.min(n - z);
+                        std::hint::black_box(painter.render([z as i64, 0, 0], d, n, n));
+                        z += d;
+                    }
+                });
+                let voxels = n * n * n;
+                let (floor, floor_s) = match &burn_device {
+                    None => (
+                        "GEMM floor".to_string(),
+                        time(plan.runs.min(2), || gemm_floor(&shapes, voxels)),
+                    ),
+                    Some(d) => (
+                        "matmul floor".to_string(),
+                        time(plan.runs.min(2), || {
+                            matmul_floor(&shapes, voxels, device.chunk_points(), d)
+                        }),
+                    ),
+                };
+                emit(Row {
+                    work: format!("volume {n}³ (3D 10x128 MLP)"),
+                    device: device_name(device),
+                    ours_s: ours,
+                    floor,
+                    floor_s: Some(floor_s),
+                });
+                if n == 512 {
+                    emit(Row {
+                        work: "volume 512³".into(),
+                        device: "paper (GPU, reported)".into(),
+                        ours_s: PAPER_VOLUME_512_S,
+                        floor: format!("ours is {:.2}x its time", ours / PAPER_VOLUME_512_S),
+                        floor_s: None,
+                    });
+                }
             }
         }
     }
@@ -192,27 +276,45 @@ pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
             let Some(burn_device) = device.burn_device()? else {
                 continue; // the fused CPU evaluator has no backward; flex trains on the CPU
             };
-            let run_dir =
-                tempfile::tempdir().map_err(|e| crate::Error::Runtime(format!("temp dir: {e}")))?;
-            let config = TrainConfig {
-                batch: 4,
-                crop: 128,
-                ..TrainConfig::default()
-            };
-            let mut trainer = Trainer::new(config, exemplar.path(), run_dir.path(), &burn_device)?;
-            let ours = time(plan.runs.min(2), || {
-                trainer.step();
-            });
-            emit(Row {
-                work: "train iteration (batch 4, crop 128)".into(),
-                device: device_name(device),
-                ours_s: ours,
-                floor: format!(
-                    "authors' PyTorch {AUTHORS_ITERATION_S:.1} s on the reference machine (not re-run): {:.1}x",
-                    AUTHORS_ITERATION_S / ours
-                ),
-                floor_s: None,
-            });
+            for &batch in &plan.batches {
+                let run_dir = tempfile::tempdir()
+                    .map_err(|e| crate::Error::Runtime(format!("temp dir: {e}")))?;
+                let config = TrainConfig {
+                    batch,
+                    crop: 128,
+                    ..TrainConfig::default()
+                };
+                let mut trainer =
+                    Trainer::new(config, exemplar.path(), run_dir.path(), &burn_device)?;
+                let ours = time(plan.runs.min(2), || {
+                    trainer.step();
+                });
+                let reference = if is_gpu(device) {
+                    AUTHORS_H100_ITERATION_S
+                        .iter()
+                        .find(|(b, _)| *b == batch)
+                        .map(|(_, t)| {
+                            format!(
+                                "authors' PyTorch on one H100 {t:.3} s (issue 6, not re-run): {:.2}x",
+                                t / ours
+                            )
+                        })
+                } else {
+                    (batch == 4).then(|| {
+                        format!(
+                            "authors' PyTorch {AUTHORS_ITERATION_S:.1} s on the reference machine (not re-run): {:.1}x",
+                            AUTHORS_ITERATION_S / ours
+                        )
+                    })
+                };
+                emit(Row {
+                    work: format!("train iteration (batch {batch}, crop 128)"),
+                    device: device_name(device),
+                    ours_s: ours,
+                    floor: reference.unwrap_or_else(|| "-".into()),
+                    floor_s: None,
+                });
+            }
         }
     }
     Ok(rows)

@@ -72,6 +72,13 @@ pub struct BenchArgs {
     /// Skip the training iteration.
     #[arg(long)]
     pub no_train: bool,
+    /// Batch sizes of the timed training iterations, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "4")]
+    pub batches: Vec<usize>,
+    /// Also paint cubes of these sides, comma-separated, with a 3D generator of the paper's size
+    /// (10x128, random weights), e.g. --volumes 128,512.
+    #[arg(long, value_delimiter = ',')]
+    pub volumes: Vec<usize>,
 }
 
 #[derive(Debug, Args)]
@@ -200,6 +207,10 @@ pub struct TrainOverrides {
     /// over the exemplar (x, y in [-1, 1]). The model then needs --guide in synth.
     #[arg(long, value_name = "LINE", allow_hyphen_values = true)]
     pub guide: Option<String>,
+    /// Learn a solid texture from the 2D exemplar: a 3D generator whose random axis-aligned
+    /// slices must look like the exemplar (paint it with `synth --solid --size WxHxD`).
+    #[arg(long)]
+    pub solid: bool,
 }
 
 impl TrainOverrides {
@@ -207,6 +218,9 @@ impl TrainOverrides {
     pub fn apply(&self, c: &mut TrainConfig) {
         if let Some(g) = &self.guide {
             c.guide = Some(g.clone());
+        }
+        if self.solid {
+            c.solid = true;
         }
         macro_rules! set {
             ($($f:ident),*) => { $( if let Some(v) = self.$f.clone() { c.$f = v; } )* };
@@ -249,6 +263,9 @@ impl TrainOverrides {
             width,
             guide
         );
+        if self.solid {
+            v.push("--solid");
+        }
         v
     }
 }
@@ -275,9 +292,9 @@ pub struct SynthArgs {
     /// working folder, else the shipped honeycomb model.
     #[arg(long, value_name = "PATH")]
     pub model: Option<PathBuf>,
-    /// Output width and height in pixels (square). Default 512.
-    #[arg(long, value_name = "N")]
-    pub size: Option<usize>,
+    /// Output size: N (square), WxH, or WxHxD for a volume (as --depth D). Default 512.
+    #[arg(long, value_name = "N|WxH|WxHxD", value_parser = parse_size)]
+    pub size: Option<Size>,
     /// Output width in pixels (overrides --size).
     #[arg(long, value_name = "W")]
     pub width: Option<usize>,
@@ -287,10 +304,18 @@ pub struct SynthArgs {
     /// Depth in voxels: paint a volume (`[D, H, W, C]` .npy) with a 3D model.
     #[arg(long, value_name = "D")]
     pub depth: Option<usize>,
-    /// With --depth: also write the zero level set of the volume's first channel as a mesh
+    /// With a volume: also write the zero level set of the volume's first channel as a mesh
     /// (.obj or .ply), extracted slab by slab and welded.
-    #[arg(long, value_name = "PATH", requires = "depth")]
+    #[arg(long, value_name = "PATH")]
     pub mesh: Option<PathBuf>,
+    /// The model is a solid texture (trained with `train --solid`): paint its volume
+    /// (`--size WxHxD` or `--depth`, .npy) or, with --slice, one plane of it as an image.
+    #[arg(long)]
+    pub solid: bool,
+    /// With a 3D model: write only the plane AXIS=INDEX of the WxHxD volume as an image, e.g.
+    /// z=0 (an HxW plane), y=10 (DxW) or x=255 (DxH).
+    #[arg(long, value_name = "AXIS=INDEX", value_parser = parse_slice)]
+    pub slice: Option<(char, usize)>,
     /// Seed of the latent field: each seed paints a different sample.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -347,6 +372,55 @@ pub struct ImportArgs {
     /// Crop size it was trained with, in pixels (their default: 128).
     #[arg(long, default_value_t = 128)]
     pub crop: usize,
+}
+
+/// `--size`: a width, height and optional depth.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Size {
+    pub width: usize,
+    pub height: usize,
+    pub depth: Option<usize>,
+}
+
+fn parse_size(s: &str) -> std::result::Result<Size, String> {
+    let parts: Vec<&str> = s.split(['x', 'X']).collect();
+    let number = |p: &str| {
+        p.trim()
+            .parse::<usize>()
+            .map_err(|_| format!("'{s}': expected N, WxH or WxHxD, e.g. 512 or 256x256x256"))
+    };
+    match parts.as_slice() {
+        [n] => Ok(Size {
+            width: number(n)?,
+            height: number(n)?,
+            depth: None,
+        }),
+        [w, h] => Ok(Size {
+            width: number(w)?,
+            height: number(h)?,
+            depth: None,
+        }),
+        [w, h, d] => Ok(Size {
+            width: number(w)?,
+            height: number(h)?,
+            depth: Some(number(d)?),
+        }),
+        _ => Err(format!(
+            "'{s}': expected N, WxH or WxHxD, e.g. 512 or 256x256x256"
+        )),
+    }
+}
+
+fn parse_slice(s: &str) -> std::result::Result<(char, usize), String> {
+    let err = || format!("'{s}': expected AXIS=INDEX with AXIS x, y or z, e.g. z=0");
+    let (axis, index) = s.split_once('=').ok_or_else(err)?;
+    let axis = match axis.trim().to_ascii_lowercase().as_str() {
+        "x" => 'x',
+        "y" => 'y',
+        "z" => 'z',
+        _ => return Err(err()),
+    };
+    Ok((axis, index.trim().parse().map_err(|_| err())?))
 }
 
 fn parse_offset(s: &str) -> std::result::Result<(i64, i64), String> {
@@ -451,15 +525,29 @@ pub fn most_recent_model(dir: &Path) -> Option<PathBuf> {
 fn synth(args: SynthArgs) -> Result<()> {
     let device: DeviceChoice = args.device.parse()?;
     device.burn_device()?; // a missing GPU or driver fails here, before any work
-    let width = args.width.or(args.size).unwrap_or(512);
-    let height = args.height.or(args.size).unwrap_or(512);
+    let width = args.width.or(args.size.map(|s| s.width)).unwrap_or(512);
+    let height = args.height.or(args.size.map(|s| s.height)).unwrap_or(512);
     if width == 0 || height == 0 {
         return Err(input_error!(
             "size {width}x{height}: width and height must be at least 1"
         ));
     }
-    if let Some(depth) = args.depth {
+    let depth = args.depth.or(args.size.and_then(|s| s.depth));
+    if let Some(slice) = args.slice {
+        return synth_slice(&args, [depth.unwrap_or(width), height, width], slice);
+    }
+    if let Some(depth) = depth {
         return synth_volume(&args, width, height, depth);
+    }
+    if args.mesh.is_some() {
+        return Err(input_error!(
+            "--mesh needs a volume: give --size WxHxD or --depth with a 3D model"
+        ));
+    }
+    if args.solid {
+        return Err(input_error!(
+            "--solid paints a volume or a plane: give --size WxHxD, --depth or --slice"
+        ));
     }
     if args.bits.is_some_and(|b| b != 8 && b != 16) {
         return Err(input_error!(
@@ -931,8 +1019,11 @@ fn eval(args: EvalArgs) -> Result<()> {
 
 fn bench(args: BenchArgs) -> Result<()> {
     use crate::bench;
-    if args.sizes.contains(&0) {
-        return Err(input_error!("--sizes: sizes must be at least 1"));
+    if args.sizes.contains(&0) || args.volumes.contains(&0) {
+        return Err(input_error!("--sizes/--volumes: sizes must be at least 1"));
+    }
+    if args.batches.contains(&0) {
+        return Err(input_error!("--batches: batch sizes must be at least 1"));
     }
     if args.runs == 0 {
         return Err(input_error!("--runs 0: need at least one run"));
@@ -967,6 +1058,8 @@ fn bench(args: BenchArgs) -> Result<()> {
         devices,
         runs: args.runs,
         train: !args.no_train,
+        batches: args.batches.clone(),
+        volumes: args.volumes.clone(),
     };
     println!(
         "ipfn {} bench on {}",
@@ -984,6 +1077,69 @@ fn bench(args: BenchArgs) -> Result<()> {
     Ok(())
 }
 
+/// `ipfn synth --slice AXIS=I`: one plane of a 3D model's `depth x height x width` volume as
+/// an image.
+fn synth_slice(args: &SynthArgs, [depth, height, width]: [usize; 3], slice: (char, usize)) -> Result<()> {
+    if depth == 0 {
+        return Err(input_error!("--depth 0: must be at least 1"));
+    }
+    if args.mirror || args.guide.is_some() || args.tile || args.mesh.is_some() {
+        return Err(input_error!(
+            "--slice writes one plane: --tile, --mirror, --guide and --mesh do not apply"
+        ));
+    }
+    let (axis, index) = slice;
+    // The plane's origin in the volume and its box (one voxel thick across `axis`).
+    let (origin, [d, h, w], extent) = match axis {
+        'z' => ([index as i64, 0, 0], [1, height, width], depth),
+        'y' => ([0, index as i64, 0], [depth, 1, width], height),
+        _ => ([0, 0, index as i64], [depth, height, 1], width),
+    };
+    if index >= extent {
+        return Err(input_error!(
+            "--slice {axis}={index}: the volume has {extent} voxels along {axis} (indices 0 to {})",
+            extent - 1
+        ));
+    }
+    // The image: rows and columns are the two other axes in (z, y, x) order.
+    let (rows, cols) = match axis {
+        'z' => (height, width),
+        'y' => (depth, width),
+        _ => (depth, height),
+    };
+    let format = OutputFormat::from_path(&args.out, args.bits.unwrap_or(8))?;
+    crate::io::check_destination(&args.out)?;
+    let model = choose_model(args.model.as_deref(), Path::new("."))?;
+    if model.config.dims != 3 {
+        return Err(input_error!(
+            "--slice: this model has {} coordinate axes; slices need a 3D model (train --solid, or a volume)",
+            model.config.dims
+        ));
+    }
+    format.check_size(&args.out, cols, rows, model.config.channels)?;
+    let start = Instant::now();
+    let painter = Synth::new(model.config, model.weights)
+        .seed(args.seed)
+        .zoom(args.zoom)
+        .device(args.device.parse()?)
+        .volume_painter()?;
+    let values = painter.render(origin, d, h, w);
+    let mut writer =
+        crate::io::ImageWriter::create(&args.out, format, cols, rows, painter.channels())?;
+    writer.write_rows(&values)?;
+    writer.finish()?;
+    if !args.quiet {
+        eprintln!(
+            "model: {}\nwrote {} (slice {axis}={index} of {width}x{height}x{depth}: {cols}x{rows}, seed {}) in {:.2} s",
+            model.description,
+            args.out.display(),
+            args.seed,
+            start.elapsed().as_secs_f64()
+        );
+    }
+    Ok(())
+}
+
 /// `ipfn synth --depth D`: a volume from a 3D model, streamed to .npy in slabs.
 fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> Result<()> {
     if depth == 0 {
@@ -998,7 +1154,8 @@ fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> 
     let model = choose_model(args.model.as_deref(), Path::new("."))?;
     let mut builder = Synth::new(model.config, model.weights)
         .seed(args.seed)
-        .zoom(args.zoom);
+        .zoom(args.zoom)
+        .device(args.device.parse()?);
     if args.tile {
         builder = builder.tile_volume(depth, height, width);
     }

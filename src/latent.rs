@@ -12,6 +12,9 @@
 //! - [`LatentSource::Grid`]: an explicit finite grid, indexed as the authors' code does
 //!   (`floor(u) + n / 2`, clamped to the grid), used to reproduce their numbers.
 
+use burn::prelude::*;
+use burn::tensor::activation::softmax;
+
 /// Default softmax temperature of the corner blend (paper eq. 4).
 pub const DEFAULT_SIGMA: f32 = 0.2;
 
@@ -205,6 +208,153 @@ impl LatentField {
         for (point, o) in u.chunks_exact(dims).zip(out.chunks_exact_mut(ld)) {
             self.at(point, o);
         }
+    }
+}
+
+/// The lattice vectors that a batch of regions touches, held on a burn device, with the blend
+/// of eq. 4 evaluated there: GPU synthesis and training send a few hundred lattice vectors to
+/// the device instead of `latent_dim` floats per point.
+///
+/// Each field (one per generated sample in training; one for a synthesis) gets the same-sized
+/// box of lattice indices; point `i` belongs to field `field[i]`. The blend computes what
+/// [`LatentField::at`] computes: `floor` and `u - floor(u)` are exact in f32 on every backend,
+/// so points select the same cell as on the CPU and values differ only by the rounding of
+/// `sqrt` and `exp`.
+#[derive(Debug, Clone)]
+pub struct DeviceLattice {
+    /// `[fields * cells, latent_dim]`, row-major over each field's box.
+    table: Tensor<2>,
+    /// Lowest lattice index per axis, per field: `[fields, dims]`.
+    lows: Tensor<2, Int>,
+    /// Index strides of a box (row-major), per axis.
+    strides: Vec<i64>,
+    cells: i64,
+    dims: usize,
+    latent_dim: usize,
+    sigma: f32,
+}
+
+impl DeviceLattice {
+    /// The lattice points around every `u` with `lo[d] <= u[d] <= hi[d]`, one box per field.
+    ///
+    /// # Shapes
+    /// - `bounds`: per field, `(lo, hi)` with `dims` entries each (lattice units)
+    pub fn new(fields: &[(&LatentField, Vec<f32>, Vec<f32>)], device: &Device) -> Self {
+        let (first, _, _) = fields.first().expect("at least one field");
+        let (dims, ld, sigma) = (first.dims, first.latent_dim, first.sigma);
+        let lows: Vec<Vec<i64>> = fields
+            .iter()
+            .map(|(_, lo, _)| lo.iter().map(|v| v.floor() as i64).collect())
+            .collect();
+        // Lattice points per axis: the cells from floor(lo) to floor(hi), plus their far corner.
+        let extent: Vec<i64> = (0..dims)
+            .map(|d| {
+                fields
+                    .iter()
+                    .zip(&lows)
+                    .map(|((_, _, hi), low)| hi[d].floor() as i64 - low[d] + 2)
+                    .max()
+                    .unwrap_or(2)
+            })
+            .collect();
+        let mut strides = vec![1i64; dims];
+        for d in (0..dims.saturating_sub(1)).rev() {
+            strides[d] = strides[d + 1] * extent[d + 1];
+        }
+        let cells = extent.iter().product::<i64>();
+        let mut values = vec![0f32; fields.len() * cells as usize * ld];
+        let mut index = vec![0i64; dims];
+        for (f, ((field, _, _), low)) in fields.iter().zip(&lows).enumerate() {
+            assert!(
+                field.dims == dims && field.latent_dim == ld && field.sigma == sigma,
+                "fields of one DeviceLattice share their shape"
+            );
+            for cell in 0..cells {
+                for d in 0..dims {
+                    index[d] = low[d] + cell / strides[d] % extent[d];
+                }
+                let at = (f * cells as usize + cell as usize) * ld;
+                field.lattice_vector(&index, &mut values[at..at + ld]);
+            }
+        }
+        let n = fields.len();
+        Self {
+            table: Tensor::from_data(TensorData::new(values, [n * cells as usize, ld]), device),
+            lows: Tensor::from_data(TensorData::new(lows.concat(), [n, dims]), device),
+            strides,
+            cells,
+            dims,
+            latent_dim: ld,
+            sigma,
+        }
+    }
+
+    /// The blended latent vectors at lattice-space points `u`.
+    ///
+    /// # Shapes
+    /// - `u`: `[n, dims]`, inside the bounds given to [`DeviceLattice::new`] for its field
+    /// - `field`: `[n]`, the field of each point (`None`: all points belong to field 0)
+    /// - output: `[n, latent_dim]`
+    pub fn blend(&self, u: Tensor<2>, field: Option<Tensor<1, Int>>) -> Tensor<2> {
+        let [n, dims] = u.dims();
+        assert_eq!(dims, self.dims, "points have one coordinate per lattice axis");
+        let device = u.device();
+        let base = u.clone().floor(); // [n, dims]
+        let frac = u - base.clone(); // [n, dims], exact
+        let (low, offset) = match field {
+            Some(f) => (
+                self.lows.clone().select(0, f.clone()), // [n, dims]
+                f.mul_scalar(self.cells),               // [n]
+            ),
+            None => (
+                self.lows.clone().slice([0..1, 0..dims]).expand([n, dims]),
+                Tensor::zeros([n], &device),
+            ),
+        };
+        let strides =
+            Tensor::<2, Int>::from_data(TensorData::new(self.strides.clone(), [1, dims]), &device);
+        // Flat table row of each point's low corner.
+        let local = (base.int() - low) * strides; // [n, dims]
+        let row = local.sum_dim(1).reshape([n]) + offset; // [n]
+        let corners = 1usize << dims;
+        let mut logits = Vec::with_capacity(corners);
+        let mut rows = Vec::with_capacity(corners);
+        for corner in 0..corners {
+            let mut dist2: Option<Tensor<2>> = None;
+            let mut shift = 0i64;
+            for d in 0..dims {
+                let f = frac.clone().slice([0..n, d..d + 1]); // [n, 1]
+                let t = if corner >> d & 1 == 1 {
+                    shift += self.strides[d];
+                    f.neg().add_scalar(1.0)
+                } else {
+                    f
+                };
+                let t2 = t.clone() * t;
+                dist2 = Some(match dist2 {
+                    Some(s) => s + t2,
+                    None => t2,
+                });
+            }
+            let dist = dist2.expect("at least one axis").sqrt(); // [n, 1]
+            logits.push(dist.div_scalar(-self.sigma));
+            rows.push(row.clone().add_scalar(shift));
+        }
+        let weights = softmax(Tensor::cat(logits, 1), 1); // [n, corners]
+        let mut out: Option<Tensor<2>> = None;
+        for (corner, r) in rows.into_iter().enumerate() {
+            let w = weights.clone().slice([0..n, corner..corner + 1]); // [n, 1]
+            let v = self.table.clone().select(0, r) * w; // [n, latent_dim]
+            out = Some(match out {
+                Some(o) => o + v,
+                None => v,
+            });
+        }
+        out.expect("at least one corner")
+    }
+
+    pub fn latent_dim(&self) -> usize {
+        self.latent_dim
     }
 }
 

@@ -21,7 +21,7 @@ use crate::generator::{Generator, GeneratorConfig, GeneratorWeights};
 use crate::guidance::Guide;
 use crate::input_error;
 use crate::io::{ImageWriter, OutputFormat};
-use crate::latent::LatentField;
+use crate::latent::{DeviceLattice, LatentField};
 use crate::sample::PixelGrid;
 
 /// Where the generator runs.
@@ -92,26 +92,35 @@ pub fn cuda_device() -> Result<Device> {
         std::sync::OnceLock::new();
     DEVICE
         .get_or_init(|| {
+            // The first panic message from any thread (the CUDA runtime initialises on a
+            // server thread, whose panic reaches this one only as a closed channel).
+            static FIRST_PANIC: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
             let hook = std::panic::take_hook();
-            std::panic::set_hook(Box::new(|_| {}));
+            std::panic::set_hook(Box::new(|info| {
+                let message = info
+                    .payload()
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| info.payload().downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_else(|| "CUDA initialisation failed".into());
+                let mut first = FIRST_PANIC.lock().unwrap_or_else(|e| e.into_inner());
+                first.get_or_insert(message);
+            }));
             let probe = std::panic::catch_unwind(|| {
                 let device = Device::cuda(0);
                 let one = Tensor::<1>::from_floats([1.0f32].as_slice(), &device);
                 one.try_into_vec_as::<f32>().map(|_| device)
             });
             std::panic::set_hook(hook);
+            let first = FIRST_PANIC
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .take()
+                .map(|m| m.split_whitespace().collect::<Vec<_>>().join(" "));
             match probe {
                 Ok(Ok(device)) => Ok(device),
-                Ok(Err(e)) => Err(format!("{e:?}")),
-                Err(panic) => Err(panic
-                    .downcast_ref::<String>()
-                    .cloned()
-                    .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
-                    .unwrap_or_else(|| "CUDA initialisation failed".into())
-                    .lines()
-                    .next()
-                    .unwrap_or_default()
-                    .to_string()),
+                Ok(Err(e)) => Err(first.unwrap_or_else(|| format!("{e:?}"))),
+                Err(_) => Err(first.unwrap_or_else(|| "CUDA initialisation failed".into())),
             }
         })
         .clone()
@@ -531,52 +540,28 @@ impl Painter {
             Engine::Burn {
                 generator,
                 device,
-                chunk: chunk_points,
+                chunk,
             } => {
-                let ld = self.field.latent_dim();
-                let guided = self.guide.is_some() as usize;
-                let (mut coords, mut u, mut latent) = (Vec::new(), Vec::new(), Vec::new());
+                let ys: Vec<f32> = (0..height as i64)
+                    .map(|r| self.grid.coordinate(y0 + r))
+                    .collect();
+                let xs: Vec<f32> = (0..width as i64)
+                    .map(|col| self.grid.coordinate(x0 + col))
+                    .collect();
                 let mut g = Vec::new();
-                for (chunk, values) in out.chunks_mut(chunk_points * c).enumerate() {
-                    let count = values.len() / c;
-                    self.grid.region_coordinates(
-                        y0,
-                        x0,
-                        width,
-                        chunk * chunk_points,
-                        count,
-                        &mut coords,
-                    );
-                    u.clear();
-                    u.extend(
-                        coords.chunks_exact(2).flat_map(|p| {
-                            [p[0] * self.latent_scale[0], p[1] * self.latent_scale[1]]
-                        }),
-                    );
-                    latent.resize(count * ld, 0.0);
-                    self.field.fill(&u, &mut latent);
-                    self.guide_values(y0, x0, width, chunk * chunk_points, count, &mut g);
-                    let input: Vec<f32> = if guided == 0 {
-                        latent.clone()
-                    } else {
-                        latent
-                            .chunks_exact(ld)
-                            .zip(&g)
-                            .flat_map(|(z, gv)| z.iter().copied().chain([*gv]))
-                            .collect()
-                    };
-                    let p =
-                        Tensor::<2>::from_data(TensorData::new(coords.clone(), [count, 2]), device);
-                    let z = Tensor::<2>::from_data(
-                        TensorData::new(input, [count, ld + guided]),
-                        device,
-                    );
-                    let y = generator.forward(p, z); // [count, channels]
-                    let host = y
-                        .try_into_vec_as::<f32>()
-                        .expect("generator output is readable as f32");
-                    values.copy_from_slice(&host);
-                }
+                out = render_on_device(
+                    generator,
+                    device,
+                    *chunk,
+                    &self.field,
+                    &self.latent_scale,
+                    &[ys, xs],
+                    c,
+                    |start, count| {
+                        self.guide_values(y0, x0, width, start, count, &mut g);
+                        g.clone()
+                    },
+                );
             }
         }
         out
@@ -649,10 +634,11 @@ impl Painter {
     }
 }
 
-/// A prepared volume synthesis (a 3D model): renders boxes of the infinite volume on the CPU,
-/// with the fused evaluator, in chunks, so memory is bounded by the slab being written.
+/// A prepared volume synthesis (a 3D model): renders boxes of the infinite volume in chunks (on
+/// the CPU with the fused evaluator, or on a burn device), so memory is bounded by the slab
+/// being written.
 pub struct VolumePainter {
-    generator: FusedGenerator,
+    engine: Engine,
     field: LatentField,
     latent_scale: Vec<f32>,
     grid: PixelGrid,
@@ -703,7 +689,14 @@ impl Synth {
             field,
             latent_scale,
             grid,
-            generator: FusedGenerator::new(weights),
+            engine: match self.device.burn_device()? {
+                None => Engine::Fused(FusedGenerator::new(weights)),
+                Some(device) => Engine::Burn {
+                    generator: Generator::from_weights(&weights, &device),
+                    device,
+                    chunk: self.device.chunk_points(),
+                },
+            },
             tile,
         })
     }
@@ -724,6 +717,32 @@ impl VolumePainter {
     /// # Shapes
     /// - output: `[depth, height, width, channels]`, row-major, values in [-1, 1]
     pub fn render(&self, origin: [i64; 3], depth: usize, height: usize, width: usize) -> Vec<f32> {
+        let generator = match &self.engine {
+            Engine::Fused(generator) => generator,
+            Engine::Burn {
+                generator,
+                device,
+                chunk,
+            } => {
+                let axis = |o: i64, n: usize| -> Vec<f32> {
+                    (0..n as i64).map(|i| self.grid.coordinate(o + i)).collect()
+                };
+                return render_on_device(
+                    generator,
+                    device,
+                    *chunk,
+                    &self.field,
+                    &self.latent_scale,
+                    &[
+                        axis(origin[0], depth),
+                        axis(origin[1], height),
+                        axis(origin[2], width),
+                    ],
+                    self.channels,
+                    |_, _| Vec::new(),
+                );
+            }
+        };
         let c = self.channels;
         // Chunks are groups of whole rows inside one depth slice, counted from the slice's first
         // row, so every slab decomposition of a box evaluates the same chunks: the same region
@@ -745,7 +764,7 @@ impl VolumePainter {
                 let count = values.len() / c;
                 self.grid
                     .box_coordinates(origin, height, width, start, count, coords);
-                self.generator.eval(
+                generator.eval(
                     coords,
                     &self.field,
                     &self.latent_scale,
@@ -845,6 +864,101 @@ impl VolumePainter {
     fn first_channel(&self, values: &[f32]) -> Vec<f32> {
         values.chunks_exact(self.channels).map(|v| v[0]).collect()
     }
+}
+
+/// Chunks read back together by [`render_on_device`]: one transfer per 16 chunks keeps the
+/// device busy while bounding its memory (16 x 65,536 points of output).
+const CHUNKS_PER_READBACK: usize = 16;
+
+/// Renders the grid of points `axes[0] x axes[1] (x axes[2])` (coordinates per axis, row-major,
+/// last axis fastest) through the burn generator on `device`: coordinates are built there from
+/// the per-axis lists, the latent field is blended there from the few lattice vectors the box
+/// touches ([`DeviceLattice`]), and outputs are read back a few chunks at a time. Chunks are
+/// whole rows inside one slice of the first axis (3D), counted from that slice's first row, so
+/// every slab split of a volume evaluates the same chunks. `guide(start, count)` gives the
+/// guidance values of points `start..start + count` (row-major), empty for an unguided model.
+///
+/// # Shapes
+/// - output: `[points, channels]`, row-major over the axes
+#[allow(clippy::too_many_arguments)]
+fn render_on_device(
+    generator: &Generator,
+    device: &Device,
+    chunk_points: usize,
+    field: &LatentField,
+    latent_scale: &[f32],
+    axes: &[Vec<f32>],
+    channels: usize,
+    mut guide: impl FnMut(usize, usize) -> Vec<f32>,
+) -> Vec<f32> {
+    let dims = axes.len();
+    let total: usize = axes.iter().map(Vec::len).product();
+    let mut out = Vec::with_capacity(total * channels);
+    if total == 0 {
+        return out;
+    }
+    // The lattice box: u = p * scale is computed on the device exactly as here (one f32
+    // product), so these bounds hold there.
+    let (lo, hi): (Vec<f32>, Vec<f32>) = axes
+        .iter()
+        .zip(latent_scale)
+        .map(|(a, &s)| {
+            a.iter()
+                .map(|&v| v * s)
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), u| {
+                    (l.min(u), h.max(u))
+                })
+        })
+        .unzip();
+    let lattice = DeviceLattice::new(&[(field, lo, hi)], device);
+    let axis: Vec<Tensor<1>> = axes
+        .iter()
+        .map(|a| Tensor::from_data(TensorData::new(a.clone(), [a.len()]), device))
+        .collect();
+    let scale = Tensor::<2>::from_data(TensorData::new(latent_scale.to_vec(), [1, dims]), device);
+    let (height, width) = (axes[dims - 2].len(), axes[dims - 1].len());
+    let depth = total / (height * width);
+    let rows_per_chunk = (chunk_points / width).clamp(1, height);
+    let mut pending = Vec::new();
+    let flush = |pending: &mut Vec<Tensor<2>>, out: &mut Vec<f32>| {
+        if !pending.is_empty() {
+            let host = Tensor::cat(std::mem::take(pending), 0)
+                .try_into_vec_as::<f32>()
+                .expect("generator output is readable as f32");
+            out.extend_from_slice(&host);
+        }
+    };
+    for z in 0..depth {
+        for r0 in (0..height).step_by(rows_per_chunk) {
+            let rows = rows_per_chunk.min(height - r0);
+            let n = rows * width;
+            let column = |t: Tensor<3>| t.expand([rows, width, 1]); // [rows, width, 1]
+            let mut parts = Vec::with_capacity(dims);
+            if dims == 3 {
+                parts.push(column(axis[0].clone().slice([z..z + 1]).reshape([1, 1, 1])));
+            }
+            parts.push(column(
+                axis[dims - 2]
+                    .clone()
+                    .slice([r0..r0 + rows])
+                    .reshape([rows, 1, 1]),
+            ));
+            parts.push(column(axis[dims - 1].clone().reshape([1, width, 1])));
+            let p = Tensor::cat(parts, 2).reshape([n, dims]); // [n, dims]
+            let mut latent = lattice.blend(p.clone() * scale.clone(), None); // [n, latent_dim]
+            let g = guide(z * height * width + r0 * width, n);
+            if !g.is_empty() {
+                let g = Tensor::<2>::from_data(TensorData::new(g, [n, 1]), device);
+                latent = Tensor::cat(vec![latent, g], 1); // [n, latent_dim + 1]
+            }
+            pending.push(generator.forward(p, latent)); // [n, channels]
+            if pending.len() == CHUNKS_PER_READBACK {
+                flush(&mut pending, &mut out);
+            }
+        }
+    }
+    flush(&mut pending, &mut out);
+    out
 }
 
 /// Default band size for [`Painter::write_image`]: 1 Mi pixels (12 MiB of RGB floats).

@@ -25,7 +25,7 @@ use crate::generator::{Generator, GeneratorConfig, GeneratorWeights};
 use crate::guidance::Guide;
 use crate::input_error;
 use crate::io::{Exemplar, write_png};
-use crate::latent::{LatentField, derive_seed, mix64};
+use crate::latent::{DeviceLattice, LatentField, derive_seed, mix64};
 use crate::maps::{MapFiles, MapSet};
 use crate::synth::Synth;
 use adam::Adam;
@@ -74,6 +74,10 @@ pub struct TrainConfig {
     /// `g = a·X + b·Y + c` over the exemplar's normalised coordinates. Unset: no guidance.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub guide: Option<String>,
+    /// Solid texture (Henzler et al. 2020): a generator of 3 coordinates whose random
+    /// axis-aligned slices the 2D critic compares with crops of the 2D exemplar.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub solid: bool,
 }
 
 impl Default for TrainConfig {
@@ -102,6 +106,7 @@ impl Default for TrainConfig {
             latent_scale: 0.5,
             critic_widths: vec![64, 128, 256, 512],
             guide: None,
+            solid: false,
         }
     }
 }
@@ -121,7 +126,7 @@ impl TrainConfig {
 
     pub fn generator_config(&self, channels: usize) -> GeneratorConfig {
         GeneratorConfig::new()
-            .with_dims(2)
+            .with_dims(self.dims())
             .with_channels(channels)
             .with_octaves(self.octaves)
             .with_latent_dim(self.latent_dim)
@@ -133,6 +138,11 @@ impl TrainConfig {
             // so `synth` at zoom 1 paints the pattern at the exemplar's own scale.
             .with_crop(((self.crop as f64) / self.resize).round().max(1.0) as usize)
             .with_guidance(self.guide.is_some() as usize)
+    }
+
+    /// Coordinate axes of the generator: 3 for a solid texture, else 2.
+    pub fn dims(&self) -> usize {
+        if self.solid { 3 } else { 2 }
     }
 
     /// The critic sees the image's channels and, for a guided run, the guidance channel.
@@ -168,6 +178,11 @@ impl TrainConfig {
             ));
         }
         self.guide()?;
+        if self.solid && self.guide.is_some() {
+            return Err(input_error!(
+                "--solid and --guide cannot be combined: guidance is defined over a 2D exemplar's frame"
+            ));
+        }
         self.critic_config(exemplar.channels).validate()?;
         self.generator_config(exemplar.channels).validate()?;
         if exemplar.width < self.crop || exemplar.height < self.crop {
@@ -196,6 +211,7 @@ mod stream {
     pub const GENERATOR_FAKE: u64 = 8;
     pub const PREVIEW: u64 = 9;
     pub const GUIDE: u64 = 10;
+    pub const SLICE_AXIS: u64 = 11;
 }
 
 /// Uniform in [0, 1) from a seed and counters.
@@ -599,37 +615,52 @@ impl Trainer {
             .collect()
     }
 
-    /// The random shift and latent field of generated sample `s`.
-    fn sample_plan(&self, s: usize, counters: &[u64]) -> ([f32; 2], LatentField) {
+    /// The coordinates `[crop * crop, dims]` of generated sample `s` and its latent field.
+    ///
+    /// A crop's grid of pixel centres spans 2 units and is shifted by a random offset per
+    /// axis. For a solid texture it lies in a random axis-aligned plane of the volume: the
+    /// plane's axis sits at its random offset, and the crop's rows and columns run along the
+    /// other two axes in order.
+    fn sample_coordinates(&self, s: usize, counters: &[u64]) -> (Vec<f32>, LatentField) {
         let cfg = &self.config;
+        let dims = cfg.dims();
         let key = |purpose: u64, extra: u64| {
             let mut k = vec![purpose, s as u64, extra];
             k.extend_from_slice(counters);
             k
         };
-        let shift = [0u64, 1]
-            .map(|axis| (uniform(cfg.seed, &key(stream::SHIFT, axis)) * 2.0 - 1.0) * cfg.shift);
+        let shift: Vec<f32> = (0..dims as u64)
+            .map(|axis| (uniform(cfg.seed, &key(stream::SHIFT, axis)) * 2.0 - 1.0) * cfg.shift)
+            .collect();
         let field = LatentField::hashed(
             derive_seed(cfg.seed, &key(stream::LATENT, 0)),
-            2,
+            dims,
             cfg.latent_dim,
         )
         .with_sigma(cfg.sigma);
-        (shift, field)
-    }
-
-    /// Coordinates `[crop * crop, 2]` of a crop's pixel centres, shifted.
-    fn crop_coordinates(&self, shift: [f32; 2]) -> Vec<f32> {
-        let crop = self.config.crop;
+        let crop = cfg.crop;
         let step = 2.0 / crop as f32;
-        (0..crop * crop)
-            .flat_map(|q| {
-                [
-                    -1.0 + ((q / crop) as f32 + 0.5) * step + shift[0],
-                    -1.0 + ((q % crop) as f32 + 0.5) * step + shift[1],
-                ]
-            })
-            .collect()
+        let along = |i: usize, axis: usize| -1.0 + (i as f32 + 0.5) * step + shift[axis];
+        let coords = if dims == 2 {
+            (0..crop * crop)
+                .flat_map(|q| [along(q / crop, 0), along(q % crop, 1)])
+                .collect()
+        } else {
+            let normal = ((uniform(cfg.seed, &key(stream::SLICE_AXIS, 0)) * 3.0) as usize).min(2);
+            let (row_axis, col_axis) = match normal {
+                0 => (1, 2),
+                1 => (0, 2),
+                _ => (0, 1),
+            };
+            let mut coords = vec![0f32; crop * crop * 3];
+            for (q, p) in coords.chunks_exact_mut(3).enumerate() {
+                p[normal] = shift[normal];
+                p[row_axis] = along(q / crop, row_axis);
+                p[col_axis] = along(q % crop, col_axis);
+            }
+            coords
+        };
+        (coords, field)
     }
 
     /// Generated crops: a crop's grid shifted by a random offset per sample, and a fresh
@@ -647,18 +678,21 @@ impl Trainer {
         let (b, crop, c, ld) = (cfg.batch, cfg.crop, self.exemplar.channels, cfg.latent_dim);
         let guided = cfg.guide.is_some() as usize;
         let zw = ld + guided; // generator input after the encoding: latent, then g
-        let n = crop * crop;
-        let mut coords = vec![0f32; b * n * 2];
+        let (n, dims) = (crop * crop, cfg.dims());
+        if device.clone().inner() != Device::flex() {
+            return self.fake_batch_on_device(generator, device, counters);
+        }
+        let mut coords = vec![0f32; b * n * dims];
         let mut latent = vec![0f32; b * n * zw];
         let mut guides = vec![0f32; b * n]; // used by a guided run only
         coords
-            .par_chunks_mut(n * 2)
+            .par_chunks_mut(n * dims)
             .zip(latent.par_chunks_mut(n * zw))
             .zip(guides.par_chunks_mut(n))
             .enumerate()
             .for_each(|(s, ((p, z), gs))| {
-                let (shift, field) = self.sample_plan(s, counters);
-                p.copy_from_slice(&self.crop_coordinates(shift));
+                let (sample, field) = self.sample_coordinates(s, counters);
+                p.copy_from_slice(&sample);
                 let u: Vec<f32> = p.iter().map(|v| v * cfg.latent_scale).collect();
                 if guided == 0 {
                     field.fill(&u, z);
@@ -673,13 +707,75 @@ impl Trainer {
                     gs.copy_from_slice(&g);
                 }
             });
-        let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, 2]), device);
+        let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, dims]), device);
         let z = Tensor::<2>::from_data(TensorData::new(latent, [b * n, zw]), device);
         let image = generator
             .forward(p, z) // [b * crop * crop, c]
             .reshape([b, crop, crop, c])
             .permute([0, 3, 1, 2]); // [b, c, crop, crop]
         if guided == 0 {
+            return image;
+        }
+        // The critic sees the guidance the generator was given, as one more channel.
+        let g = Tensor::<4>::from_data(TensorData::new(guides, [b, 1, crop, crop]), device);
+        Tensor::cat(vec![image, g], 1) // [b, c + 1, crop, crop]
+    }
+
+    /// [`Trainer::fake_batch`] on a GPU: the same crops and fields, with the latent blend
+    /// evaluated on the device from each sample's few lattice vectors ([`DeviceLattice`])
+    /// instead of `latent_dim` floats per point sent from the host. (On flex the host blend
+    /// is kept: it is as fast there, and keeps CPU training bit for bit as it was.)
+    ///
+    /// # Shapes
+    /// - output: `[batch, channels (+ 1 guidance), crop, crop]` on `device`
+    fn fake_batch_on_device(
+        &self,
+        generator: &Generator,
+        device: &Device,
+        counters: &[u64],
+    ) -> Tensor<4> {
+        let cfg = &self.config;
+        let (b, crop, c) = (cfg.batch, cfg.crop, self.exemplar.channels);
+        let (n, dims) = (crop * crop, cfg.dims());
+        let mut coords = Vec::with_capacity(b * n * dims);
+        let mut guides = Vec::new();
+        let mut plans = Vec::with_capacity(b);
+        for s in 0..b {
+            let (p, field) = self.sample_coordinates(s, counters);
+            // The box of lattice cells this crop touches (u = p * latent_scale, as on the device).
+            let (mut lo, mut hi) = (vec![f32::INFINITY; dims], vec![f32::NEG_INFINITY; dims]);
+            for q in p.chunks_exact(dims) {
+                for d in 0..dims {
+                    let u = q[d] * cfg.latent_scale;
+                    lo[d] = lo[d].min(u);
+                    hi[d] = hi[d].max(u);
+                }
+            }
+            coords.extend_from_slice(&p);
+            guides.extend(self.fake_guide(s, counters));
+            plans.push((field, lo, hi));
+        }
+        let fields: Vec<(&LatentField, Vec<f32>, Vec<f32>)> = plans
+            .iter()
+            .map(|(f, lo, hi)| (f, lo.clone(), hi.clone()))
+            .collect();
+        let lattice = DeviceLattice::new(&fields, device);
+        let sample = Tensor::<1, Int>::arange(0..b as i64, device)
+            .reshape([b, 1])
+            .expand([b, n])
+            .reshape([b * n]); // [b * n]: the field of each point
+        let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, dims]), device);
+        let mut z = lattice.blend(p.clone().mul_scalar(cfg.latent_scale), Some(sample)); // [b * n, ld]
+        let guided = !guides.is_empty();
+        if guided {
+            let g = Tensor::<2>::from_data(TensorData::new(guides.clone(), [b * n, 1]), device);
+            z = Tensor::cat(vec![z, g], 1); // [b * n, ld + 1]
+        }
+        let image = generator
+            .forward(p, z) // [b * n, c]
+            .reshape([b, crop, crop, c])
+            .permute([0, 3, 1, 2]); // [b, c, crop, crop]
+        if !guided {
             return image;
         }
         // The critic sees the guidance the generator was given, as one more channel.
@@ -698,7 +794,8 @@ impl Trainer {
         let guided = cfg.guide.is_some() as usize;
         let cg = c + guided;
         let n = crop * crop;
-        let scale = [cfg.latent_scale; 2];
+        let dims = cfg.dims();
+        let scale = vec![cfg.latent_scale; dims];
         let mut points = vec![0f32; b * n * c]; // [b, n, c]
         let mut guides = vec![0f32; b * n]; // [b, n], used by a guided run only
         points
@@ -706,8 +803,7 @@ impl Trainer {
             .zip(guides.par_chunks_mut(n))
             .enumerate()
             .for_each(|(s, (out, gs))| {
-                let (shift, field) = self.sample_plan(s, counters);
-                let p = self.crop_coordinates(shift);
+                let (p, field) = self.sample_coordinates(s, counters);
                 let g = self.fake_guide(s, counters);
                 if !g.is_empty() {
                     gs.copy_from_slice(&g);
@@ -723,7 +819,7 @@ impl Trainer {
                             &g[start..start + count]
                         };
                         generator.eval(
-                            &p[start * 2..(start + count) * 2],
+                            &p[start * dims..(start + count) * dims],
                             &field,
                             &scale,
                             gi,
@@ -882,7 +978,14 @@ impl Trainer {
         if let Some(g) = self.guide.clone() {
             synth = synth.guide(g, side, side); // the training line over the preview's frame
         }
-        let pixels = synth.painter()?.render(0, 0, side, side);
+        let pixels = if self.config.solid {
+            // A solid texture previews its depth-0 slice.
+            synth
+                .volume_painter()?
+                .render([0, -crop, -crop], 1, side, side)
+        } else {
+            synth.painter()?.render(0, 0, side, side)
+        };
         let dir = self.run_dir.join("previews");
         std::fs::create_dir_all(&dir)
             .map_err(|e| Error::Runtime(format!("{}: cannot create: {e}", dir.display())))?;
