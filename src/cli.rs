@@ -1079,7 +1079,11 @@ fn bench(args: BenchArgs) -> Result<()> {
 
 /// `ipfn synth --slice AXIS=I`: one plane of a 3D model's `depth x height x width` volume as
 /// an image.
-fn synth_slice(args: &SynthArgs, [depth, height, width]: [usize; 3], slice: (char, usize)) -> Result<()> {
+fn synth_slice(
+    args: &SynthArgs,
+    [depth, height, width]: [usize; 3],
+    slice: (char, usize),
+) -> Result<()> {
     if depth == 0 {
         return Err(input_error!("--depth 0: must be at least 1"));
     }

@@ -297,7 +297,10 @@ impl DeviceLattice {
     /// - output: `[n, latent_dim]`
     pub fn blend(&self, u: Tensor<2>, field: Option<Tensor<1, Int>>) -> Tensor<2> {
         let [n, dims] = u.dims();
-        assert_eq!(dims, self.dims, "points have one coordinate per lattice axis");
+        assert_eq!(
+            dims, self.dims,
+            "points have one coordinate per lattice axis"
+        );
         let device = u.device();
         let base = u.clone().floor(); // [n, dims]
         let frac = u - base.clone(); // [n, dims], exact

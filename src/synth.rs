@@ -161,7 +161,8 @@ enum Engine {
 }
 
 /// Points per burn forward pass on a GPU: bounds device memory (`width` activations per point)
-/// while keeping launches few.
+/// while keeping launches few. `IPFN_GPU_CHUNK_POINTS` overrides it (for tuning with
+/// `ipfn bench`).
 pub const GPU_CHUNK_POINTS: usize = 1 << 16;
 /// Points per burn forward pass on flex: activations stay in cache (`ipfn bench`: 1024² takes
 /// half the time it takes with 65,536-point chunks).
@@ -172,7 +173,11 @@ impl DeviceChoice {
     pub fn chunk_points(&self) -> usize {
         match self {
             Self::Cpu | Self::Flex => FLEX_CHUNK_POINTS,
-            Self::Wgpu | Self::Cuda => GPU_CHUNK_POINTS,
+            Self::Wgpu | Self::Cuda => std::env::var("IPFN_GPU_CHUNK_POINTS")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .filter(|&n: &usize| n > 0)
+                .unwrap_or(GPU_CHUNK_POINTS),
         }
     }
 }
@@ -935,12 +940,12 @@ fn render_on_device(
             let column = |t: Tensor<3>| t.expand([rows, width, 1]); // [rows, width, 1]
             let mut parts = Vec::with_capacity(dims);
             if dims == 3 {
-                parts.push(column(axis[0].clone().slice([z..z + 1]).reshape([1, 1, 1])));
+                parts.push(column(axis[0].clone().slice(z..z + 1).reshape([1, 1, 1])));
             }
             parts.push(column(
                 axis[dims - 2]
                     .clone()
-                    .slice([r0..r0 + rows])
+                    .slice(r0..r0 + rows)
                     .reshape([rows, 1, 1]),
             ));
             parts.push(column(axis[dims - 1].clone().reshape([1, width, 1])));

@@ -44,7 +44,11 @@ fn slice_scores(
             );
             assert!(o.status.success(), "{}", stderr(&o));
             let (shape, values) = read_npy(&d.join(&out)).unwrap();
-            assert_eq!(shape, vec![SIDE, SIDE, 3], "slice {axis} is {SIDE}x{SIDE} RGB");
+            assert_eq!(
+                shape,
+                vec![SIDE, SIDE, 3],
+                "slice {axis} is {SIDE}x{SIDE} RGB"
+            );
             let score = sifid(
                 (&to_unit_rgb(&values, 3).unwrap(), SIDE, SIDE),
                 (&to_unit_rgb(exemplar, 3).unwrap(), ex_side, ex_side),
@@ -119,7 +123,11 @@ fn slices_of_a_solid_texture_resemble_the_exemplar_along_every_axis() {
     assert_eq!(shape, vec![SIDE, SIDE, SIDE, 3]);
     let (_, z40) = read_npy(&d.join("run/latest.ipfn-z.npy")).unwrap();
     let plane = SIDE * SIDE * 3;
-    assert_eq!(&volume[40 * plane..41 * plane], &z40[..], "slice z=40 is plane 40");
+    assert_eq!(
+        &volume[40 * plane..41 * plane],
+        &z40[..],
+        "slice z=40 is plane 40"
+    );
 
     // The library gives the same plane.
     let (config, weights) = GeneratorWeights::read_from(&model).unwrap();
@@ -143,7 +151,9 @@ fn slice_and_solid_errors_are_one_line() {
     assert_error(
         &ipfn(
             d,
-            &["synth", "--slice", "z=64", "--size", "32x32x64", "--out", "s.png"],
+            &[
+                "synth", "--slice", "z=64", "--size", "32x32x64", "--out", "s.png",
+            ],
         ),
         &["--slice z=64", "64 voxels along z"],
     );
@@ -164,7 +174,9 @@ fn slice_and_solid_errors_are_one_line() {
     assert_error(
         &ipfn(
             d,
-            &["train", "w.png", "--solid", "--guide", "x", "--config", "s.toml"],
+            &[
+                "train", "w.png", "--solid", "--guide", "x", "--config", "s.toml",
+            ],
         ),
         &["--solid", "--guide"],
     );
