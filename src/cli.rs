@@ -281,6 +281,9 @@ pub struct DrawArgs {
     /// Width and height in pixels.
     #[arg(long, default_value_t = 256)]
     pub size: usize,
+    /// gyroid: the period in voxels (default 32).
+    #[arg(long, value_name = "VOXELS")]
+    pub period: Option<usize>,
     /// Output PNG (a folder for material).
     #[arg(long, short, value_name = "PATH")]
     pub out: PathBuf,
@@ -872,12 +875,16 @@ fn draw(args: DrawArgs) -> Result<()> {
     }
     let n = args.size;
     if args.pattern == "gyroid" {
-        let sdf = procedural::gyroid_sdf(n, 32.0, 0.4);
+        let period = args.period.unwrap_or(32);
+        if period < 2 {
+            return Err(input_error!("--period {period}: must be at least 2 voxels"));
+        }
+        let sdf = procedural::gyroid_sdf(n, period as f32, 0.4);
         let mut writer = crate::io::VolumeWriter::create(&args.out, n, n, n, 1)?;
         writer.write_slab(&sdf)?;
         writer.finish()?;
         eprintln!(
-            "wrote {} ({n}x{n}x{n} gyroid sheet SDF, period 32 voxels)",
+            "wrote {} ({n}x{n}x{n} gyroid sheet SDF, period {period} voxels)",
             args.out.display()
         );
         return Ok(());

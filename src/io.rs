@@ -458,6 +458,9 @@ pub fn to_unit_u16(v: f32) -> u16 {
 pub struct Exemplar {
     pub width: usize,
     pub height: usize,
+    /// 1 for an image; the slices of a volume exemplar (`values` is then `[depth, height,
+    /// width, channels]`).
+    pub depth: usize,
     pub channels: usize,
     pub values: Vec<f32>,
 }
@@ -469,6 +472,7 @@ impl Exemplar {
         Self {
             width,
             height,
+            depth: 1,
             channels,
             values: unit.iter().map(|v| v.clamp(0.0, 1.0) * 2.0 - 1.0).collect(),
         }
@@ -502,6 +506,9 @@ impl Exemplar {
         let mut h = crate::latent::mix64(
             (self.width as u64) << 32 ^ self.height as u64 ^ (self.channels as u64) << 60,
         );
+        if self.depth > 1 {
+            h = crate::latent::mix64(h ^ self.depth as u64);
+        }
         for v in &self.values {
             h = crate::latent::mix64(h ^ v.to_bits() as u64);
         }
@@ -658,6 +665,19 @@ pub fn read_sdf_volume(path: &Path, sdf_scale: f32) -> Result<Volume> {
             .map(|v| (v * sdf_scale).clamp(-1.0, 1.0))
             .collect(),
     })
+}
+
+impl Volume {
+    /// The volume as a training exemplar (`[depth, height, width, 1]`, values in [-1, 1]).
+    pub fn into_exemplar(self) -> Exemplar {
+        Exemplar {
+            width: self.width,
+            height: self.height,
+            depth: self.depth,
+            channels: self.channels,
+            values: self.values,
+        }
+    }
 }
 
 /// Streams a volume `[depth, height, width, channels]` to `.npy` in slabs of whole depth

@@ -270,6 +270,7 @@ pub fn stack(images: &[Exemplar]) -> Exemplar {
     Exemplar {
         width: w,
         height: h,
+        depth: 1,
         channels,
         values,
     }

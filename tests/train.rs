@@ -325,7 +325,7 @@ fn it_learns_the_period_of_stripes() {
         k[1]
     );
 
-    let critic = trainer.critic().valid();
+    let critic = trainer.critic().image().expect("an image run").valid();
     let inner = device.clone();
     let gap = |g: &ipfn::generator::Generator| {
         let mut total = 0.0;

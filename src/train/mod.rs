@@ -18,6 +18,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::checkpoint::{self, Checkpoint};
+use crate::critic::volume::{VolumeCritic, VolumeCriticConfig};
 use crate::critic::{Critic, CriticConfig};
 use crate::error::{Error, Result};
 use crate::generator::fused::{CHUNK_POINTS, FusedGenerator, Scratch};
@@ -78,7 +79,22 @@ pub struct TrainConfig {
     /// axis-aligned slices the 2D critic compares with crops of the 2D exemplar.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub solid: bool,
+    /// Set by `train` when the exemplar is a volume (`.npy`): a 3D generator against the 3D
+    /// critic, on cubic crops of `crop` voxels.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub volume: bool,
+    /// Volumes: the signed distances are multiplied by this and clamped to [-1, 1] (the
+    /// authors' truncated SDF).
+    #[serde(skip_serializing_if = "is_default_sdf_scale")]
+    pub sdf_scale: f32,
 }
+
+fn is_default_sdf_scale(v: &f32) -> bool {
+    *v == DEFAULT_SDF_SCALE
+}
+
+/// The authors' `sdf_scale`.
+pub const DEFAULT_SDF_SCALE: f32 = 10.0;
 
 impl Default for TrainConfig {
     fn default() -> Self {
@@ -107,6 +123,8 @@ impl Default for TrainConfig {
             critic_widths: vec![64, 128, 256, 512],
             guide: None,
             solid: false,
+            volume: false,
+            sdf_scale: DEFAULT_SDF_SCALE,
         }
     }
 }
@@ -140,9 +158,14 @@ impl TrainConfig {
             .with_guidance(self.guide.is_some() as usize)
     }
 
-    /// Coordinate axes of the generator: 3 for a solid texture, else 2.
+    /// Coordinate axes of the generator: 3 for a solid texture or a volume, else 2.
     pub fn dims(&self) -> usize {
-        if self.solid { 3 } else { 2 }
+        if self.solid || self.volume { 3 } else { 2 }
+    }
+
+    /// The 3D critic of a volume run.
+    pub fn volume_critic_config(&self) -> VolumeCriticConfig {
+        VolumeCriticConfig::new(1, self.crop).with_widths(self.critic_widths.clone())
     }
 
     /// The critic sees the image's channels and, for a guided run, the guidance channel.
@@ -182,6 +205,32 @@ impl TrainConfig {
             return Err(input_error!(
                 "--solid and --guide cannot be combined: guidance is defined over a 2D exemplar's frame"
             ));
+        }
+        if self.volume {
+            if self.solid || self.guide.is_some() || self.resize != 1.0 {
+                return Err(input_error!(
+                    "{}: a volume exemplar takes neither --solid, --guide nor --resize",
+                    exemplar_path.display()
+                ));
+            }
+            if !(self.sdf_scale > 0.0) {
+                return Err(input_error!("sdf_scale must be positive"));
+            }
+            self.volume_critic_config().validate()?;
+            self.generator_config(exemplar.channels).validate()?;
+            let smallest = exemplar.depth.min(exemplar.height).min(exemplar.width);
+            if smallest < self.crop {
+                return Err(input_error!(
+                    "{}: the volume is {}x{}x{} voxels, smaller than the {} voxel crop; use a smaller --crop (a multiple of 16, e.g. {})",
+                    exemplar_path.display(),
+                    exemplar.width,
+                    exemplar.height,
+                    exemplar.depth,
+                    self.crop,
+                    (smallest / 16 * 16).max(16)
+                ));
+            }
+            return Ok(());
         }
         self.critic_config(exemplar.channels).validate()?;
         self.generator_config(exemplar.channels).validate()?;
@@ -316,7 +365,7 @@ pub struct Trainer {
     run_dir: PathBuf,
     device: Device,
     generator: Generator,
-    critic: Critic,
+    critic: RunCritic,
     adam_generator: Adam,
     adam_critic: Adam,
     /// Iterations completed.
@@ -349,23 +398,27 @@ fn apply_resize(exemplar: Exemplar, resize: f64) -> Result<Exemplar> {
 pub enum ExemplarSource {
     Image(PathBuf),
     Maps(MapFiles),
+    /// A signed-distance volume (`.npy`).
+    Volume(PathBuf),
 }
 
 impl From<&Path> for ExemplarSource {
     fn from(p: &Path) -> Self {
-        Self::Image(p.to_path_buf())
+        p.to_path_buf().into()
     }
 }
 
 impl From<&PathBuf> for ExemplarSource {
     fn from(p: &PathBuf) -> Self {
-        Self::Image(p.clone())
+        p.clone().into()
     }
 }
 
 impl From<PathBuf> for ExemplarSource {
+    /// A `.npy` file is a volume; anything else an image.
     fn from(p: PathBuf) -> Self {
-        Self::Image(p)
+        let npy = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+        if npy { Self::Volume(p) } else { Self::Image(p) }
     }
 }
 
@@ -376,10 +429,16 @@ impl From<MapFiles> for ExemplarSource {
 }
 
 impl ExemplarSource {
-    /// Reads the exemplar (stacking a map set's channels) and applies the config's resize.
-    pub fn load(&self, resize: f64) -> Result<(Exemplar, Option<MapSet>)> {
+    /// Reads the exemplar (stacking a map set's channels; a volume as a truncated SDF) and
+    /// applies the config's resize.
+    pub fn load(&self, config: &TrainConfig) -> Result<(Exemplar, Option<MapSet>)> {
+        let resize = config.resize;
         match self {
             Self::Image(path) => Ok((load_exemplar(path, resize)?, None)),
+            Self::Volume(path) => Ok((
+                crate::io::read_sdf_volume(path, config.sdf_scale)?.into_exemplar(),
+                None,
+            )),
             Self::Maps(files) => {
                 let (exemplar, set) = files.load()?;
                 Ok((apply_resize(exemplar, resize)?, Some(set)))
@@ -390,7 +449,7 @@ impl ExemplarSource {
     /// The file that names the exemplar in messages (a set's first map).
     pub fn main_path(&self) -> &Path {
         match self {
-            Self::Image(path) => path,
+            Self::Image(path) | Self::Volume(path) => path,
             Self::Maps(files) => &files.files[0],
         }
     }
@@ -400,7 +459,7 @@ impl ExemplarSource {
     fn to_meta(&self) -> String {
         let absolute = |p: &PathBuf| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
         match self {
-            Self::Image(path) => absolute(path).to_string_lossy().into_owned(),
+            Self::Image(path) | Self::Volume(path) => absolute(path).to_string_lossy().into_owned(),
             Self::Maps(files) => serde_json::to_string(&MapFiles {
                 files: files.files.iter().map(absolute).collect(),
                 ..files.clone()
@@ -418,7 +477,92 @@ impl ExemplarSource {
                 )
             })
         } else {
-            Ok(Self::Image(PathBuf::from(meta)))
+            Ok(PathBuf::from(meta).into())
+        }
+    }
+}
+
+/// The critic's input: image crops (or a solid's slices), or volume cubes.
+#[derive(Clone)]
+pub enum Batch {
+    /// `[batch, channels, crop, crop]`
+    Image(Tensor<4>),
+    /// `[batch, channels, crop, crop, crop]`
+    Volume(Tensor<5>),
+}
+
+/// The run's critic: the 2D critic for images and solid textures, the 3D one for volumes.
+/// Updates and checkpoints go to the inner module, so parameter paths are the same as a
+/// plain critic's.
+#[derive(Debug, Clone)]
+pub enum RunCritic {
+    Image(Critic),
+    Volume(VolumeCritic),
+}
+
+impl RunCritic {
+    /// The 2D critic, if this run has one.
+    pub fn image(&self) -> Option<&Critic> {
+        match self {
+            Self::Image(c) => Some(c),
+            Self::Volume(_) => None,
+        }
+    }
+
+    /// Mean critic score of a batch.
+    fn mean_score(&self, x: Batch) -> Tensor<1> {
+        match (self, x) {
+            (Self::Image(c), Batch::Image(x)) => c.forward(x).mean(),
+            (Self::Volume(c), Batch::Volume(x)) => c.forward(x).mean(),
+            _ => unreachable!("a run's batches are of its critic's kind"),
+        }
+    }
+
+    fn gradient_penalty(
+        &self,
+        real: Batch,
+        fake: Batch,
+        alpha: Tensor<1>,
+        lambda: f64,
+    ) -> Tensor<1> {
+        match (self, real, fake) {
+            (Self::Image(c), Batch::Image(r), Batch::Image(f)) => {
+                c.gradient_penalty(r, f, alpha, lambda)
+            }
+            (Self::Volume(c), Batch::Volume(r), Batch::Volume(f)) => {
+                c.gradient_penalty(r, f, alpha, lambda)
+            }
+            _ => unreachable!("a run's batches are of its critic's kind"),
+        }
+    }
+
+    fn no_grad(self) -> Self {
+        match self {
+            Self::Image(c) => Self::Image(c.no_grad()),
+            Self::Volume(c) => Self::Volume(c.no_grad()),
+        }
+    }
+
+    /// The gradient of `loss` with respect to the critic's parameters.
+    fn gradients(&self, loss: Tensor<1>) -> GradientsParams {
+        match self {
+            Self::Image(c) => GradientsParams::from_grads(loss.backward(), c),
+            Self::Volume(c) => GradientsParams::from_grads(loss.backward(), c),
+        }
+    }
+
+    /// One Adam step.
+    fn update(self, grads: GradientsParams, adam: &mut Adam) -> Self {
+        match self {
+            Self::Image(c) => Self::Image(adam.step(c, grads)),
+            Self::Volume(c) => Self::Volume(adam.step(c, grads)),
+        }
+    }
+
+    fn write_to(&self, checkpoint: &mut Checkpoint) {
+        match self {
+            Self::Image(c) => checkpoint::write_module(c, "critic", checkpoint),
+            Self::Volume(c) => checkpoint::write_module(c, "critic", checkpoint),
         }
     }
 }
@@ -432,7 +576,9 @@ impl Trainer {
         device: &Device,
     ) -> Result<Self> {
         let source = source.into();
-        let (exemplar, maps) = source.load(config.resize)?;
+        let mut config = config;
+        config.volume = matches!(source, ExemplarSource::Volume(_));
+        let (exemplar, maps) = source.load(&config)?;
         config.validate(&exemplar, source.main_path())?;
         let guide = config.guide()?;
         let device = device.clone().autodiff();
@@ -441,11 +587,19 @@ impl Trainer {
             config.seed,
             stream::INIT_GENERATOR,
         );
-        let critic = initialise(
-            config.critic_config(exemplar.channels).init(&device),
-            config.seed,
-            stream::INIT_CRITIC,
-        );
+        let critic = if config.volume {
+            RunCritic::Volume(initialise(
+                config.volume_critic_config().init(&device),
+                config.seed,
+                stream::INIT_CRITIC,
+            ))
+        } else {
+            RunCritic::Image(initialise(
+                config.critic_config(exemplar.channels).init(&device),
+                config.seed,
+                stream::INIT_CRITIC,
+            ))
+        };
         Ok(Self {
             adam_generator: Adam::new(config.lr, config.beta1, config.beta2),
             adam_critic: Adam::new(config.lr, config.beta1, config.beta2),
@@ -478,7 +632,7 @@ impl Trainer {
             config.iterations = n;
         }
         let source = ExemplarSource::from_meta(ckpt.meta(EXEMPLAR_KEY)?, &latest)?;
-        let (exemplar, maps) = source.load(config.resize)?;
+        let (exemplar, maps) = source.load(&config)?;
         if ckpt.meta(FINGERPRINT_KEY)? != exemplar.fingerprint().to_string() {
             return Err(input_error!(
                 "{}: the exemplar changed since this run started; start a new run instead of resuming",
@@ -496,11 +650,19 @@ impl Trainer {
             ));
         }
         let generator = Generator::from_weights(&weights, &device);
-        let critic = checkpoint::read_module(
-            config.critic_config(exemplar.channels).init(&device),
-            "critic",
-            &ckpt,
-        )?;
+        let critic = if config.volume {
+            RunCritic::Volume(checkpoint::read_module(
+                config.volume_critic_config().init(&device),
+                "critic",
+                &ckpt,
+            )?)
+        } else {
+            RunCritic::Image(checkpoint::read_module(
+                config.critic_config(exemplar.channels).init(&device),
+                "critic",
+                &ckpt,
+            )?)
+        };
         let mut adam_generator = Adam::new(config.lr, config.beta1, config.beta2);
         adam_generator.read_from("adam.generator", &ckpt, &device)?;
         let mut adam_critic = Adam::new(config.lr, config.beta1, config.beta2);
@@ -538,7 +700,7 @@ impl Trainer {
         &self.generator
     }
 
-    pub fn critic(&self) -> &Critic {
+    pub fn critic(&self) -> &RunCritic {
         &self.critic
     }
 
@@ -560,6 +722,40 @@ impl Trainer {
             ((uniform(self.config.seed, &k) * range as f32) as usize).min(range - 1)
         };
         (draw(0, ex.height - crop + 1), draw(1, ex.width - crop + 1))
+    }
+
+    /// Random real cubes of a volume run for step `step` of the current iteration.
+    ///
+    /// # Shapes
+    /// - output: `[batch, 1, crop, crop, crop]`
+    pub fn real_volume_batch(&self, counters: &[u64]) -> Tensor<5> {
+        let (b, s, ex) = (self.config.batch, self.config.crop, &self.exemplar);
+        let mut data = vec![0f32; b * s * s * s];
+        for (i, sample) in data.chunks_mut(s * s * s).enumerate() {
+            // Rows and columns as for an image crop; depth from a third draw of the stream.
+            let (top, left) = self.crop_origin(stream::REAL_CROP, i, counters);
+            let mut k = vec![stream::REAL_CROP, i as u64, 2];
+            k.extend_from_slice(counters);
+            let range = ex.depth - s + 1;
+            let front = ((uniform(self.config.seed, &k) * range as f32) as usize).min(range - 1);
+            for z in 0..s {
+                for y in 0..s {
+                    let from = ((front + z) * ex.height + top + y) * ex.width + left;
+                    sample[(z * s + y) * s..(z * s + y + 1) * s]
+                        .copy_from_slice(&ex.values[from..from + s]);
+                }
+            }
+        }
+        Tensor::from_data(TensorData::new(data, [b, 1, s, s, s]), &self.device)
+    }
+
+    /// The critic's real input of this run's kind.
+    fn real(&self, counters: &[u64]) -> Batch {
+        if self.config.volume {
+            Batch::Volume(self.real_volume_batch(counters))
+        } else {
+            Batch::Image(self.real_batch(counters))
+        }
     }
 
     /// Random real crops for step `step` of the current iteration.
@@ -615,12 +811,22 @@ impl Trainer {
             .collect()
     }
 
-    /// The coordinates `[crop * crop, dims]` of generated sample `s` and its latent field.
+    /// Points of one generated sample: `crop²` pixels, or `crop³` voxels for a volume run.
+    fn sample_points(&self) -> usize {
+        let crop = self.config.crop;
+        if self.config.volume {
+            crop * crop * crop
+        } else {
+            crop * crop
+        }
+    }
+
+    /// The coordinates `[points, dims]` of generated sample `s` and its latent field.
     ///
     /// A crop's grid of pixel centres spans 2 units and is shifted by a random offset per
     /// axis. For a solid texture it lies in a random axis-aligned plane of the volume: the
     /// plane's axis sits at its random offset, and the crop's rows and columns run along the
-    /// other two axes in order.
+    /// other two axes in order. For a volume it is a cube of `crop³` voxels.
     fn sample_coordinates(&self, s: usize, counters: &[u64]) -> (Vec<f32>, LatentField) {
         let cfg = &self.config;
         let dims = cfg.dims();
@@ -645,6 +851,17 @@ impl Trainer {
             (0..crop * crop)
                 .flat_map(|q| [along(q / crop, 0), along(q % crop, 1)])
                 .collect()
+        } else if cfg.volume {
+            // A cube of voxel centres.
+            (0..crop * crop * crop)
+                .flat_map(|q| {
+                    [
+                        along(q / (crop * crop), 0),
+                        along(q / crop % crop, 1),
+                        along(q % crop, 2),
+                    ]
+                })
+                .collect()
         } else {
             let normal = ((uniform(cfg.seed, &key(stream::SLICE_AXIS, 0)) * 3.0) as usize).min(2);
             let (row_axis, col_axis) = match normal {
@@ -667,7 +884,7 @@ impl Trainer {
     /// latent field per sample.
     ///
     /// # Shapes
-    /// - output: `[batch, channels, crop, crop]` on `device` (`generator`'s)
+    /// - output: `[batch, channels (+ 1 guidance), crop, crop]` on `device` (`generator`'s)
     pub fn fake_batch(
         &self,
         generator: &Generator,
@@ -675,22 +892,69 @@ impl Trainer {
         counters: &[u64],
     ) -> Tensor<4> {
         let cfg = &self.config;
-        let (b, crop, c, ld) = (cfg.batch, cfg.crop, self.exemplar.channels, cfg.latent_dim);
+        let (b, crop, c) = (cfg.batch, cfg.crop, self.exemplar.channels);
+        let (values, guides) = self.fake_values(generator, device, counters);
+        let image = values.reshape([b, crop, crop, c]).permute([0, 3, 1, 2]); // [b, c, crop, crop]
+        if guides.is_empty() {
+            return image;
+        }
+        // The critic sees the guidance the generator was given, as one more channel.
+        let g = Tensor::<4>::from_data(TensorData::new(guides, [b, 1, crop, crop]), device);
+        Tensor::cat(vec![image, g], 1) // [b, c + 1, crop, crop]
+    }
+
+    /// Generated cubes of a volume run, as [`Trainer::fake_batch`] makes crops.
+    ///
+    /// # Shapes
+    /// - output: `[batch, channels, crop, crop, crop]` on `device`
+    pub fn fake_volume_batch(
+        &self,
+        generator: &Generator,
+        device: &Device,
+        counters: &[u64],
+    ) -> Tensor<5> {
+        let cfg = &self.config;
+        let (b, s, c) = (cfg.batch, cfg.crop, self.exemplar.channels);
+        let (values, _) = self.fake_values(generator, device, counters);
+        values.reshape([b, s, s, s, c]).permute([0, 4, 1, 2, 3]) // [b, c, s, s, s]
+    }
+
+    /// The critic's input for generated samples of this run's kind.
+    fn fake(&self, generator: &Generator, device: &Device, counters: &[u64]) -> Batch {
+        if self.config.volume {
+            Batch::Volume(self.fake_volume_batch(generator, device, counters))
+        } else {
+            Batch::Image(self.fake_batch(generator, device, counters))
+        }
+    }
+
+    /// The generator at every point of every sample, and each point's guidance value (empty
+    /// for an unguided run).
+    ///
+    /// # Shapes
+    /// - output: `[batch * points, channels]` on `device`, and `[batch * points]`
+    fn fake_values(
+        &self,
+        generator: &Generator,
+        device: &Device,
+        counters: &[u64],
+    ) -> (Tensor<2>, Vec<f32>) {
+        let cfg = &self.config;
+        let (b, ld) = (cfg.batch, cfg.latent_dim);
         let guided = cfg.guide.is_some() as usize;
         let zw = ld + guided; // generator input after the encoding: latent, then g
-        let (n, dims) = (crop * crop, cfg.dims());
+        let (n, dims) = (self.sample_points(), cfg.dims());
         if device.clone().inner() != Device::flex() {
-            return self.fake_batch_on_device(generator, device, counters);
+            return self.fake_values_on_device(generator, device, counters);
         }
         let mut coords = vec![0f32; b * n * dims];
         let mut latent = vec![0f32; b * n * zw];
-        let mut guides = vec![0f32; b * n]; // used by a guided run only
+        let mut guides = vec![0f32; b * n * guided];
         coords
             .par_chunks_mut(n * dims)
             .zip(latent.par_chunks_mut(n * zw))
-            .zip(guides.par_chunks_mut(n))
             .enumerate()
-            .for_each(|(s, ((p, z), gs))| {
+            .for_each(|(s, (p, z))| {
                 let (sample, field) = self.sample_coordinates(s, counters);
                 p.copy_from_slice(&sample);
                 let u: Vec<f32> = p.iter().map(|v| v * cfg.latent_scale).collect();
@@ -704,39 +968,34 @@ impl Trainer {
                         z[q * zw..q * zw + ld].copy_from_slice(&zs[q * ld..(q + 1) * ld]);
                         z[q * zw + ld] = g[q];
                     }
-                    gs.copy_from_slice(&g);
                 }
             });
+        if guided == 1 {
+            for (s, gs) in guides.chunks_mut(n).enumerate() {
+                gs.copy_from_slice(&self.fake_guide(s, counters));
+            }
+        }
         let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, dims]), device);
         let z = Tensor::<2>::from_data(TensorData::new(latent, [b * n, zw]), device);
-        let image = generator
-            .forward(p, z) // [b * crop * crop, c]
-            .reshape([b, crop, crop, c])
-            .permute([0, 3, 1, 2]); // [b, c, crop, crop]
-        if guided == 0 {
-            return image;
-        }
-        // The critic sees the guidance the generator was given, as one more channel.
-        let g = Tensor::<4>::from_data(TensorData::new(guides, [b, 1, crop, crop]), device);
-        Tensor::cat(vec![image, g], 1) // [b, c + 1, crop, crop]
+        (generator.forward(p, z), guides) // [b * n, c]
     }
 
-    /// [`Trainer::fake_batch`] on a GPU: the same crops and fields, with the latent blend
+    /// [`Trainer::fake_values`] on a GPU: the same crops and fields, with the latent blend
     /// evaluated on the device from each sample's few lattice vectors ([`DeviceLattice`])
     /// instead of `latent_dim` floats per point sent from the host. (On flex the host blend
     /// is kept: it is as fast there, and keeps CPU training bit for bit as it was.)
     ///
     /// # Shapes
-    /// - output: `[batch, channels (+ 1 guidance), crop, crop]` on `device`
-    fn fake_batch_on_device(
+    /// - output: `[batch * points, channels]` on `device`, and `[batch * points]`
+    fn fake_values_on_device(
         &self,
         generator: &Generator,
         device: &Device,
         counters: &[u64],
-    ) -> Tensor<4> {
+    ) -> (Tensor<2>, Vec<f32>) {
         let cfg = &self.config;
-        let (b, crop, c) = (cfg.batch, cfg.crop, self.exemplar.channels);
-        let (n, dims) = (crop * crop, cfg.dims());
+        let b = cfg.batch;
+        let (n, dims) = (self.sample_points(), cfg.dims());
         let mut coords = Vec::with_capacity(b * n * dims);
         let mut guides = Vec::new();
         let mut plans = Vec::with_capacity(b);
@@ -766,21 +1025,11 @@ impl Trainer {
             .reshape([b * n]); // [b * n]: the field of each point
         let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, dims]), device);
         let mut z = lattice.blend(p.clone().mul_scalar(cfg.latent_scale), Some(sample)); // [b * n, ld]
-        let guided = !guides.is_empty();
-        if guided {
+        if !guides.is_empty() {
             let g = Tensor::<2>::from_data(TensorData::new(guides.clone(), [b * n, 1]), device);
             z = Tensor::cat(vec![z, g], 1); // [b * n, ld + 1]
         }
-        let image = generator
-            .forward(p, z) // [b * n, c]
-            .reshape([b, crop, crop, c])
-            .permute([0, 3, 1, 2]); // [b, c, crop, crop]
-        if !guided {
-            return image;
-        }
-        // The critic sees the guidance the generator was given, as one more channel.
-        let g = Tensor::<4>::from_data(TensorData::new(guides, [b, 1, crop, crop]), device);
-        Tensor::cat(vec![image, g], 1) // [b, c + 1, crop, crop]
+        (generator.forward(p, z), guides) // [b * n, c]
     }
 
     /// The same crops as [`Trainer::fake_batch`], evaluated by the fused CPU generator (no
@@ -790,10 +1039,38 @@ impl Trainer {
     /// - output: `[batch, channels (+ 1 guidance), crop, crop]` on the training device
     pub fn fake_batch_fused(&self, generator: &FusedGenerator, counters: &[u64]) -> Tensor<4> {
         let cfg = &self.config;
-        let (b, crop, c) = (cfg.batch, cfg.crop, self.exemplar.channels);
+        let (b, crop, cg) = (
+            cfg.batch,
+            cfg.crop,
+            self.exemplar.channels + cfg.guide.is_some() as usize,
+        );
+        let planar = self.fake_planar_fused(generator, counters);
+        Tensor::from_data(TensorData::new(planar, [b, cg, crop, crop]), &self.device)
+    }
+
+    /// The critic's fake input of this run's kind, from the fused CPU generator.
+    fn fake_fused(&self, generator: &FusedGenerator, counters: &[u64]) -> Batch {
+        if !self.config.volume {
+            return Batch::Image(self.fake_batch_fused(generator, counters));
+        }
+        let (b, s, c) = (self.config.batch, self.config.crop, self.exemplar.channels);
+        let planar = self.fake_planar_fused(generator, counters);
+        Batch::Volume(Tensor::from_data(
+            TensorData::new(planar, [b, c, s, s, s]),
+            &self.device,
+        ))
+    }
+
+    /// Generated samples from the fused CPU generator, channel-planar.
+    ///
+    /// # Shapes
+    /// - output: `[batch, channels (+ 1 guidance), points]`
+    fn fake_planar_fused(&self, generator: &FusedGenerator, counters: &[u64]) -> Vec<f32> {
+        let cfg = &self.config;
+        let (b, c) = (cfg.batch, self.exemplar.channels);
         let guided = cfg.guide.is_some() as usize;
         let cg = c + guided;
-        let n = crop * crop;
+        let n = self.sample_points();
         let dims = cfg.dims();
         let scale = vec![cfg.latent_scale; dims];
         let mut points = vec![0f32; b * n * c]; // [b, n, c]
@@ -839,7 +1116,7 @@ impl Trainer {
                 }
             }
         }
-        Tensor::from_data(TensorData::new(planar, [b, cg, crop, crop]), &self.device)
+        planar
     }
 
     /// Runs one iteration: critic steps, then generator steps.
@@ -862,15 +1139,18 @@ impl Trainer {
             .then(|| FusedGenerator::new(self.generator.weights()));
         for step in 0..cfg.critic_steps as u64 {
             let t = Instant::now();
-            let real = self.real_batch(&[it, step]);
+            let real = self.real(&[it, step]);
             let counters = [stream::CRITIC_FAKE, it, step];
             let fake = match &fused {
-                Some(g) => self.fake_batch_fused(g, &counters),
-                None => Tensor::from_inner(self.fake_batch(
+                Some(g) => self.fake_fused(g, &counters),
+                None => match self.fake(
                     &self.generator.valid(),
                     &self.device.clone().inner(),
                     &counters,
-                )),
+                ) {
+                    Batch::Image(x) => Batch::Image(Tensor::from_inner(x)),
+                    Batch::Volume(x) => Batch::Volume(Tensor::from_inner(x)),
+                },
             };
             let alphas: Vec<f32> = (0..cfg.batch as u64)
                 .map(|s| uniform(cfg.seed, &[stream::ALPHA, s, it, step]))
@@ -879,8 +1159,8 @@ impl Trainer {
             times.critic_data += t.elapsed().as_secs_f64();
 
             let t = Instant::now();
-            let d_real = self.critic.forward(real.clone()).mean();
-            let d_fake = self.critic.forward(fake.clone()).mean();
+            let d_real = self.critic.mean_score(real.clone());
+            let d_fake = self.critic.mean_score(fake.clone());
             let penalty = self
                 .critic
                 .gradient_penalty(real, fake, alpha, cfg.gp_lambda);
@@ -890,21 +1170,21 @@ impl Trainer {
             times.critic_forward += t.elapsed().as_secs_f64();
 
             let t = Instant::now();
-            let grads = GradientsParams::from_grads(loss.backward(), &self.critic);
+            let grads = self.critic.gradients(loss);
             times.critic_backward += t.elapsed().as_secs_f64();
             let t = Instant::now();
-            self.critic = self.adam_critic.step(self.critic.clone(), grads);
+            self.critic = self.critic.clone().update(grads, &mut self.adam_critic);
             times.critic_update += t.elapsed().as_secs_f64();
         }
         for step in 0..cfg.generator_steps as u64 {
             let t = Instant::now();
             let frozen = self.critic.clone().no_grad();
-            let fake = self.fake_batch(
+            let fake = self.fake(
                 &self.generator,
                 &self.device,
                 &[stream::GENERATOR_FAKE, it, step],
             );
-            let loss = frozen.forward(fake).mean().neg();
+            let loss = frozen.mean_score(fake).neg();
             stats.generator_loss = loss.clone().into_scalar::<f32>();
             times.generator_forward += t.elapsed().as_secs_f64();
             let t = Instant::now();
@@ -948,11 +1228,14 @@ impl Trainer {
         model.save(&path)?;
 
         let mut state = model;
-        let critic_config = self.config.critic_config(self.exemplar.channels);
-        state.metadata.insert(
-            CRITIC_CONFIG_KEY.into(),
-            serde_json::to_string(&critic_config).expect("serialises"),
-        );
+        let critic_config = if self.config.volume {
+            serde_json::to_string(&self.config.volume_critic_config())
+        } else {
+            serde_json::to_string(&self.config.critic_config(self.exemplar.channels))
+        };
+        state
+            .metadata
+            .insert(CRITIC_CONFIG_KEY.into(), critic_config.expect("serialises"));
         state
             .metadata
             .insert(EXEMPLAR_KEY.into(), self.source.to_meta());
@@ -960,7 +1243,7 @@ impl Trainer {
             FINGERPRINT_KEY.into(),
             self.exemplar.fingerprint().to_string(),
         );
-        checkpoint::write_module(&self.critic, "critic", &mut state);
+        self.critic.write_to(&mut state);
         self.adam_generator.write_to("adam.generator", &mut state);
         self.adam_critic.write_to("adam.critic", &mut state);
         state.save(&self.run_dir.join("latest.ipfn"))?;
@@ -978,8 +1261,8 @@ impl Trainer {
         if let Some(g) = self.guide.clone() {
             synth = synth.guide(g, side, side); // the training line over the preview's frame
         }
-        let pixels = if self.config.solid {
-            // A solid texture previews its depth-0 slice.
+        let pixels = if self.config.dims() == 3 {
+            // A solid texture or a volume previews its depth-0 slice.
             synth
                 .volume_painter()?
                 .render([0, -crop, -crop], 1, side, side)
