@@ -213,7 +213,7 @@ impl TrainConfig {
                     exemplar_path.display()
                 ));
             }
-            if !(self.sdf_scale > 0.0) {
+            if !self.sdf_scale.is_finite() || self.sdf_scale <= 0.0 {
                 return Err(input_error!("sdf_scale must be positive"));
             }
             self.volume_critic_config().validate()?;
