@@ -1,5 +1,6 @@
-//! Meshes of a volume's zero level set, extracted slab by slab with Naive Surface Nets (the
-//! `fast-surface-nets` crate) and welded into one watertight mesh.
+//! Meshes in and out: a volume's zero level set, extracted slab by slab with Naive Surface Nets
+//! (the `fast-surface-nets` crate) and welded into one watertight mesh; and a mesh file turned
+//! into a signed-distance volume ([`voxelize`]) to train on.
 //!
 //! Chunking: `fast-surface-nets` makes no faces on a chunk's positive boundary, so chunks that
 //! share two sample slices (`[s_k, e_k]`, then `[e_k - 1, ...]`) produce, between them, exactly
@@ -187,6 +188,242 @@ pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<()> {
         out.flush().map_err(err)?;
     }
     file.commit()
+}
+
+/// Reads a triangle mesh: `.obj` (the `tobj` crate; polygons are triangulated, all objects
+/// merged) or `.ply` (the `ply-rs-bw` crate; ASCII or binary, faces fan-triangulated), in the
+/// file's own units.
+pub fn read_mesh(path: &Path) -> Result<Mesh> {
+    if !path.exists() {
+        return Err(input_error!("{}: no such file", path.display()));
+    }
+    let bad = |why: String| {
+        let why = why.split_whitespace().collect::<Vec<_>>().join(" ");
+        input_error!("{}: not a readable mesh ({why})", path.display())
+    };
+    let mut mesh = Mesh::default();
+    match MeshFormat::from_path(path)? {
+        MeshFormat::Obj => {
+            let options = tobj::LoadOptions {
+                triangulate: true,
+                single_index: false,
+                ..Default::default()
+            };
+            let (models, _) = tobj::load_obj(path, &options).map_err(|e| bad(e.to_string()))?;
+            for model in models {
+                let base = mesh.positions.len() as u32;
+                mesh.positions.extend(
+                    model
+                        .mesh
+                        .positions
+                        .chunks_exact(3)
+                        .map(|p| [p[0], p[1], p[2]]),
+                );
+                mesh.triangles.extend(
+                    model
+                        .mesh
+                        .indices
+                        .chunks_exact(3)
+                        .map(|t| [base + t[0], base + t[1], base + t[2]]),
+                );
+            }
+        }
+        MeshFormat::Ply => {
+            use ply_rs_bw::ply::Property;
+            let file = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
+            let parser = ply_rs_bw::parser::Parser::<ply_rs_bw::ply::DefaultElement>::new();
+            let ply = parser
+                .read_ply(&mut std::io::BufReader::new(file))
+                .map_err(|e| bad(e.to_string()))?;
+            let coordinate = |v: &ply_rs_bw::ply::DefaultElement, k: &str| {
+                v.get(k)
+                    .and_then(Property::to_f32_lossy)
+                    .ok_or_else(|| bad(format!("a vertex has no numeric '{k}'")))
+            };
+            for v in ply.payload.get("vertex").into_iter().flatten() {
+                mesh.positions.push([
+                    coordinate(v, "x")?,
+                    coordinate(v, "y")?,
+                    coordinate(v, "z")?,
+                ]);
+            }
+            for f in ply.payload.get("face").into_iter().flatten() {
+                let list = f.get("vertex_indices").or_else(|| f.get("vertex_index"));
+                let indices: Vec<i64> = match list {
+                    Some(Property::ListInt(v)) => v.iter().map(|&i| i as i64).collect(),
+                    Some(Property::ListUInt(v)) => v.iter().map(|&i| i as i64).collect(),
+                    Some(Property::ListShort(v)) => v.iter().map(|&i| i as i64).collect(),
+                    Some(Property::ListUShort(v)) => v.iter().map(|&i| i as i64).collect(),
+                    Some(Property::ListChar(v)) => v.iter().map(|&i| i as i64).collect(),
+                    Some(Property::ListUChar(v)) => v.iter().map(|&i| i as i64).collect(),
+                    _ => return Err(bad("a face has no integer 'vertex_indices' list".into())),
+                };
+                let n = mesh.positions.len() as i64;
+                if indices.iter().any(|&i| i < 0 || i >= n) {
+                    return Err(bad("a face indexes a vertex that does not exist".into()));
+                }
+                for k in 1..indices.len().saturating_sub(1) {
+                    mesh.triangles.push([
+                        indices[0] as u32,
+                        indices[k] as u32,
+                        indices[k + 1] as u32,
+                    ]);
+                }
+            }
+        }
+    }
+    if mesh.triangles.is_empty() {
+        return Err(bad("it has no faces".into()));
+    }
+    if mesh.positions.iter().flatten().any(|v| !v.is_finite()) {
+        return Err(bad("it has NaN or infinite vertex positions".into()));
+    }
+    Ok(mesh)
+}
+
+/// A signed-distance volume made from a mesh by [`voxelize`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Voxelized {
+    /// `[res, res, res]` (z, y, x), negative inside, in units of the volume's side.
+    pub values: Vec<f32>,
+    pub res: usize,
+    /// Edges used by one triangle only (after welding equal positions): 0 for a closed mesh.
+    pub open_edges: usize,
+}
+
+/// Samples the signed distance to `mesh` at the centres of a `res³` grid: a cube around the
+/// mesh's bounding box, widened by `padding` of its side on each side, with mesh x, y, z along
+/// the volume's columns, rows and depth.
+///
+/// - Distance: to the nearest point of the surface (`parry3d`'s BVH point query), in units of
+///   the cube's side, as `ipfn draw gyroid` writes them and as the authors' `sdf_scale` expects.
+/// - Sign, by ray parity: along each axis, one ray per line of voxels collects every crossing
+///   of the surface, and a voxel is inside when an odd number of crossings lies before it. The
+///   three axes vote, so a ray grazing an edge or a vertex, which may count a crossing twice,
+///   is outvoted. For an open mesh parity is not defined: rays that pass through a hole see one
+///   crossing too few, and the vote only limits the damage, so check `open_edges`.
+pub fn voxelize(mesh: &Mesh, res: usize, padding: f32) -> Result<Voxelized> {
+    use parry3d::math::Vector;
+    use parry3d::query::{PointQuery, Ray, RayCast};
+    use rayon::prelude::*;
+
+    if res == 0 {
+        return Err(input_error!(
+            "--res 0: the volume needs at least 1 voxel per side"
+        ));
+    }
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for p in &mesh.positions {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0f32, f32::max);
+    if extent.is_nan() || extent <= 0.0 {
+        return Err(input_error!(
+            "the mesh has no extent: all its vertices coincide"
+        ));
+    }
+    let side = extent * (1.0 + 2.0 * padding.max(0.0));
+    let centre: [f32; 3] = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]));
+    let step = side / res as f32;
+    // Voxel centre along an axis.
+    let at = |a: usize, i: usize| centre[a] + (i as f32 + 0.5 - res as f32 * 0.5) * step;
+
+    let vertices: Vec<Vector> = mesh
+        .positions
+        .iter()
+        .map(|p| Vector::new(p[0], p[1], p[2]))
+        .collect();
+    let trimesh = parry3d::shape::TriMesh::new(vertices, mesh.triangles.clone())
+        .map_err(|e| input_error!("the mesh cannot be indexed for distance queries ({e:?})"))?;
+
+    // Inside votes from the three axes.
+    let n = res * res * res;
+    let index = |x: usize, y: usize, z: usize| (z * res + y) * res + x;
+    let mut votes = vec![0u8; n];
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        let lines: Vec<Vec<bool>> = (0..res * res)
+            .into_par_iter()
+            .map(|line| {
+                let (i, j) = (line / res, line % res);
+                let mut origin = [0f32; 3];
+                origin[u] = at(u, i);
+                origin[v] = at(v, j);
+                origin[axis] = centre[axis] - side; // outside the cube
+                let mut dir = [0f32; 3];
+                dir[axis] = 1.0;
+                let dir = Vector::new(dir[0], dir[1], dir[2]);
+                let start = Vector::new(origin[0], origin[1], origin[2]);
+                let length = 2.0 * side;
+                let nudge = side * 1e-6;
+                // Every crossing along the line, as a distance from `start`.
+                let mut crossings = Vec::new();
+                let mut travelled = 0f32;
+                while let Some(t) = trimesh.cast_local_ray(
+                    &Ray::new(start + dir * travelled, dir),
+                    length - travelled,
+                    false,
+                ) {
+                    crossings.push(travelled + t);
+                    travelled += t + nudge;
+                }
+                (0..res)
+                    .map(|k| {
+                        let s = at(axis, k) - origin[axis];
+                        crossings.iter().filter(|&&c| c < s).count() % 2 == 1
+                    })
+                    .collect()
+            })
+            .collect();
+        for (line, inside) in lines.iter().enumerate() {
+            let (i, j) = (line / res, line % res);
+            for (k, &is_inside) in inside.iter().enumerate() {
+                let mut p = [0usize; 3];
+                p[axis] = k;
+                p[u] = i;
+                p[v] = j;
+                votes[index(p[0], p[1], p[2])] += is_inside as u8;
+            }
+        }
+    }
+    let values: Vec<f32> = (0..n)
+        .into_par_iter()
+        .map(|q| {
+            let (x, y, z) = (q % res, q / res % res, q / (res * res));
+            let p = Vector::new(at(0, x), at(1, y), at(2, z));
+            let d = trimesh.distance_to_local_point(p, false) / side;
+            if votes[q] >= 2 { -d } else { d }
+        })
+        .collect();
+
+    // Open edges, after welding vertices at equal positions.
+    let mut id: HashMap<[u32; 3], u32> = HashMap::new();
+    let welded: Vec<u32> = mesh
+        .positions
+        .iter()
+        .map(|p| {
+            let key = p.map(f32::to_bits);
+            let next = id.len() as u32;
+            *id.entry(key).or_insert(next)
+        })
+        .collect();
+    let closed = Mesh {
+        positions: Vec::new(),
+        triangles: mesh
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| welded[i as usize]))
+            .collect(),
+        cells: Vec::new(),
+    };
+    Ok(Voxelized {
+        values,
+        res,
+        open_edges: boundary_edges(&closed).len(),
+    })
 }
 
 #[cfg(test)]
