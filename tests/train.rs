@@ -462,4 +462,15 @@ fn shipped_presets_parse() {
     );
     let quick = read("quick.toml");
     assert!(quick.iterations > 0 && quick.crop.is_multiple_of(16));
+    // The volume presets: cubic crops the 3D critic accepts.
+    for name in ["porous.toml", "foam.toml"] {
+        let preset = read(name);
+        let critic = TrainConfig {
+            volume: true,
+            ..preset.clone()
+        }
+        .volume_critic_config();
+        critic.validate().unwrap();
+        assert!(preset.crop >= 32 && preset.sdf_scale == 10.0, "{name}");
+    }
 }
