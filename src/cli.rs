@@ -214,6 +214,10 @@ pub struct TrainOverrides {
     /// slices must look like the exemplar (paint it with `synth --solid --size WxHxD`).
     #[arg(long)]
     pub solid: bool,
+    /// Volumes: density control. Condition the generator and the critic on each crop's
+    /// density (mean |sdf|); paint with `synth --density`.
+    #[arg(long)]
+    pub density: bool,
 }
 
 impl TrainOverrides {
@@ -224,6 +228,9 @@ impl TrainOverrides {
         }
         if self.solid {
             c.solid = true;
+        }
+        if self.density {
+            c.density = true;
         }
         macro_rules! set {
             ($($f:ident),*) => { $( if let Some(v) = self.$f.clone() { c.$f = v; } )* };
@@ -269,6 +276,9 @@ impl TrainOverrides {
         if self.solid {
             v.push("--solid");
         }
+        if self.density {
+            v.push("--density");
+        }
         v
     }
 }
@@ -303,6 +313,10 @@ pub struct DrawArgs {
     /// gyroid: the period in voxels (default 32).
     #[arg(long, value_name = "VOXELS")]
     pub period: Option<usize>,
+    /// gyroid: thicken the sheet along x (half-thickness 0.1 to 0.9), so porosity grows from
+    /// about 7% to 58% across the volume (an exemplar for `train --density`).
+    #[arg(long)]
+    pub graded: bool,
     /// Output PNG (a folder for material).
     #[arg(long, short, value_name = "PATH")]
     pub out: PathBuf,
@@ -338,6 +352,10 @@ pub struct SynthArgs {
     /// z=0 (an HxW plane), y=10 (DxW) or x=255 (DxH).
     #[arg(long, value_name = "AXIS=INDEX", value_parser = parse_slice)]
     pub slice: Option<(char, usize)>,
+    /// For a volume model trained with --density: the density (mean |sdf| of the truncated
+    /// SDF, e.g. 0.3) to paint, or A,B for a ramp from A at the first column to B at the last.
+    #[arg(long, value_name = "D|A,B", value_parser = parse_density)]
+    pub density: Option<(f32, f32)>,
     /// Seed of the latent field: each seed paints a different sample.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -430,6 +448,19 @@ fn parse_size(s: &str) -> std::result::Result<Size, String> {
         _ => Err(format!(
             "'{s}': expected N, WxH or WxHxD, e.g. 512 or 256x256x256"
         )),
+    }
+}
+
+fn parse_density(s: &str) -> std::result::Result<(f32, f32), String> {
+    let err = || format!("'{s}': expected a density D or a ramp A,B, e.g. 0.3 or 0.35,0.2");
+    let values: Vec<f32> = s
+        .split(',')
+        .map(|v| v.trim().parse::<f32>().map_err(|_| err()))
+        .collect::<std::result::Result<_, _>>()?;
+    match values[..] {
+        [d] if d.is_finite() => Ok((d, d)),
+        [a, b] if a.is_finite() && b.is_finite() => Ok((a, b)),
+        _ => Err(err()),
     }
 }
 
@@ -570,6 +601,11 @@ fn synth(args: SynthArgs) -> Result<()> {
     if args.solid {
         return Err(input_error!(
             "--solid paints a volume or a plane: give --size WxHxD, --depth or --slice"
+        ));
+    }
+    if args.density.is_some() {
+        return Err(input_error!(
+            "--density is for volume models: give --size WxHxD, --depth or --slice"
         ));
     }
     if args.bits.is_some_and(|b| b != 8 && b != 16) {
@@ -899,7 +935,11 @@ fn draw(args: DrawArgs) -> Result<()> {
         if period < 2 {
             return Err(input_error!("--period {period}: must be at least 2 voxels"));
         }
-        let sdf = procedural::gyroid_sdf(n, period as f32, 0.4);
+        let sdf = if args.graded {
+            procedural::graded_gyroid_sdf(n, period as f32, 0.1, 0.9)
+        } else {
+            procedural::gyroid_sdf(n, period as f32, 0.4)
+        };
         let mut writer = crate::io::VolumeWriter::create(&args.out, n, n, n, 1)?;
         writer.write_slab(&sdf)?;
         writer.finish()?;
@@ -1195,11 +1235,14 @@ fn synth_slice(
     }
     format.check_size(&args.out, cols, rows, model.config.channels)?;
     let start = Instant::now();
-    let painter = Synth::new(model.config, model.weights)
+    let mut builder = Synth::new(model.config, model.weights)
         .seed(args.seed)
         .zoom(args.zoom)
-        .device(args.device.parse()?)
-        .volume_painter()?;
+        .device(args.device.parse()?);
+    if let Some((from, to)) = args.density {
+        builder = builder.density(crate::synth::DensityRamp { from, to, width });
+    }
+    let painter = builder.volume_painter()?;
     let values = painter.render(origin, d, h, w);
     let mut writer =
         crate::io::ImageWriter::create(&args.out, format, cols, rows, painter.channels())?;
@@ -1233,6 +1276,9 @@ fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> 
         .seed(args.seed)
         .zoom(args.zoom)
         .device(args.device.parse()?);
+    if let Some((from, to)) = args.density {
+        builder = builder.density(crate::synth::DensityRamp { from, to, width });
+    }
     if args.tile {
         builder = builder.tile_volume(depth, height, width);
     }

@@ -199,6 +199,12 @@ pub fn graded_stripes(
 /// first-order estimate (`(|f| - t) / |grad f|`) in units of the volume's side, so the
 /// authors' `sdf_scale` of 10 truncates at a tenth of the side.
 pub fn gyroid_sdf(n: usize, period: f32, thickness: f32) -> Vec<f32> {
+    graded_gyroid_sdf(n, period, thickness, thickness)
+}
+
+/// [`gyroid_sdf`] whose sheet thickens along x, from `from` at the first column to `to` at the
+/// last: porosity and density (mean |sdf|) change across the volume, for density control.
+pub fn graded_gyroid_sdf(n: usize, period: f32, from: f32, to: f32) -> Vec<f32> {
     let k = std::f32::consts::TAU / period;
     let mut out = Vec::with_capacity(n * n * n);
     for z in 0..n {
@@ -219,7 +225,8 @@ pub fn gyroid_sdf(n: usize, period: f32, thickness: f32) -> Vec<f32> {
                     .sqrt()
                     .max(0.5)
                     * k;
-                out.push((f.abs() - thickness) / norm / n as f32);
+                let t = from + (to - from) * x as f32 / (n.max(2) - 1) as f32;
+                out.push((f.abs() - t) / norm / n as f32);
             }
         }
     }

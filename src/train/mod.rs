@@ -87,6 +87,10 @@ pub struct TrainConfig {
     /// authors' truncated SDF).
     #[serde(skip_serializing_if = "is_default_sdf_scale")]
     pub sdf_scale: f32,
+    /// Volumes: density control (the paper's Fig. 7). The generator and the critic also get the
+    /// crop's density, the mean |sdf| of its truncated SDF; `synth --density` then sets it.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub density: bool,
 }
 
 fn is_default_sdf_scale(v: &f32) -> bool {
@@ -125,6 +129,7 @@ impl Default for TrainConfig {
             solid: false,
             volume: false,
             sdf_scale: DEFAULT_SDF_SCALE,
+            density: false,
         }
     }
 }
@@ -155,7 +160,13 @@ impl TrainConfig {
             // The model's pixel is the exemplar's pixel as the user gave it, before --resize,
             // so `synth` at zoom 1 paints the pattern at the exemplar's own scale.
             .with_crop(((self.crop as f64) / self.resize).round().max(1.0) as usize)
-            .with_guidance(self.guide.is_some() as usize)
+            .with_guidance(self.conditioned() as usize)
+    }
+
+    /// Whether the generator takes one more input after the latent (and the critic one more
+    /// channel): the guidance `g` of a guided run, or the density of a density-controlled one.
+    pub fn conditioned(&self) -> bool {
+        self.guide.is_some() || self.density
     }
 
     /// Coordinate axes of the generator: 3 for a solid texture or a volume, else 2.
@@ -165,7 +176,8 @@ impl TrainConfig {
 
     /// The 3D critic of a volume run.
     pub fn volume_critic_config(&self) -> VolumeCriticConfig {
-        VolumeCriticConfig::new(1, self.crop).with_widths(self.critic_widths.clone())
+        VolumeCriticConfig::new(1 + self.density as usize, self.crop)
+            .with_widths(self.critic_widths.clone())
     }
 
     /// The critic sees the image's channels and, for a guided run, the guidance channel.
@@ -201,6 +213,11 @@ impl TrainConfig {
             ));
         }
         self.guide()?;
+        if self.density && !self.volume {
+            return Err(input_error!(
+                "--density is for volumes (.npy); for images, --guide conditions on a direction"
+            ));
+        }
         if self.solid && self.guide.is_some() {
             return Err(input_error!(
                 "--solid and --guide cannot be combined: guidance is defined over a 2D exemplar's frame"
@@ -730,14 +747,12 @@ impl Trainer {
     /// - output: `[batch, 1, crop, crop, crop]`
     pub fn real_volume_batch(&self, counters: &[u64]) -> Tensor<5> {
         let (b, s, ex) = (self.config.batch, self.config.crop, &self.exemplar);
-        let mut data = vec![0f32; b * s * s * s];
-        for (i, sample) in data.chunks_mut(s * s * s).enumerate() {
-            // Rows and columns as for an image crop; depth from a third draw of the stream.
-            let (top, left) = self.crop_origin(stream::REAL_CROP, i, counters);
-            let mut k = vec![stream::REAL_CROP, i as u64, 2];
-            k.extend_from_slice(counters);
-            let range = ex.depth - s + 1;
-            let front = ((uniform(self.config.seed, &k) * range as f32) as usize).min(range - 1);
+        let cg = 1 + self.config.density as usize; // + the density channel
+        let n = s * s * s;
+        let mut data = vec![0f32; b * cg * n];
+        for (i, sample) in data.chunks_mut(cg * n).enumerate() {
+            let origin = self.volume_crop_origin(stream::REAL_CROP, i, counters);
+            let (front, top, left) = origin;
             for z in 0..s {
                 for y in 0..s {
                     let from = ((front + z) * ex.height + top + y) * ex.width + left;
@@ -745,8 +760,47 @@ impl Trainer {
                         .copy_from_slice(&ex.values[from..from + s]);
                 }
             }
+            if self.config.density {
+                let d = self.crop_density(origin);
+                sample[n..].iter_mut().for_each(|v| *v = d);
+            }
         }
-        Tensor::from_data(TensorData::new(data, [b, 1, s, s, s]), &self.device)
+        Tensor::from_data(TensorData::new(data, [b, cg, s, s, s]), &self.device)
+    }
+
+    /// The first voxel `(depth, row, col)` of a random cube of the volume exemplar for sample
+    /// `s`, drawn from stream `purpose`.
+    fn volume_crop_origin(
+        &self,
+        purpose: u64,
+        s: usize,
+        counters: &[u64],
+    ) -> (usize, usize, usize) {
+        let (crop, ex) = (self.config.crop, &self.exemplar);
+        // Rows and columns as for an image crop; depth from a third draw of the stream.
+        let (top, left) = self.crop_origin(purpose, s, counters);
+        let mut k = vec![purpose, s as u64, 2];
+        k.extend_from_slice(counters);
+        let range = ex.depth - crop + 1;
+        let front = ((uniform(self.config.seed, &k) * range as f32) as usize).min(range - 1);
+        (front, top, left)
+    }
+
+    /// The generator's density input for the cube at `origin`: the mean |sdf| of its
+    /// truncated SDF, through [`crate::synth::density_input`].
+    fn crop_density(&self, (front, top, left): (usize, usize, usize)) -> f32 {
+        let (s, ex) = (self.config.crop, &self.exemplar);
+        let mut total = 0f64;
+        for z in 0..s {
+            for y in 0..s {
+                let from = ((front + z) * ex.height + top + y) * ex.width + left;
+                total += ex.values[from..from + s]
+                    .iter()
+                    .map(|v| v.abs() as f64)
+                    .sum::<f64>();
+            }
+        }
+        crate::synth::density_input((total / (s * s * s) as f64) as f32)
     }
 
     /// The critic's real input of this run's kind.
@@ -792,8 +846,13 @@ impl Trainer {
     }
 
     /// The guidance slice `[crop * crop]` of generated sample `s`: g over the exemplar at a
-    /// random crop position (empty for an unguided run).
-    fn fake_guide(&self, s: usize, counters: &[u64]) -> Vec<f32> {
+    /// random crop position (empty for an unguided run). For a density-controlled volume run:
+    /// the density of a random real crop, at every point.
+    fn fake_condition(&self, s: usize, counters: &[u64]) -> Vec<f32> {
+        if self.config.density {
+            let origin = self.volume_crop_origin(stream::GUIDE, s, counters);
+            return vec![self.crop_density(origin); self.sample_points()];
+        }
         let Some(g) = &self.guide else {
             return Vec::new();
         };
@@ -915,8 +974,14 @@ impl Trainer {
     ) -> Tensor<5> {
         let cfg = &self.config;
         let (b, s, c) = (cfg.batch, cfg.crop, self.exemplar.channels);
-        let (values, _) = self.fake_values(generator, device, counters);
-        values.reshape([b, s, s, s, c]).permute([0, 4, 1, 2, 3]) // [b, c, s, s, s]
+        let (values, densities) = self.fake_values(generator, device, counters);
+        let volume = values.reshape([b, s, s, s, c]).permute([0, 4, 1, 2, 3]); // [b, c, s, s, s]
+        if densities.is_empty() {
+            return volume;
+        }
+        // The critic sees the density the generator was given, as one more channel.
+        let d = Tensor::<5>::from_data(TensorData::new(densities, [b, 1, s, s, s]), device);
+        Tensor::cat(vec![volume, d], 1) // [b, c + 1, s, s, s]
     }
 
     /// The critic's input for generated samples of this run's kind.
@@ -941,7 +1006,7 @@ impl Trainer {
     ) -> (Tensor<2>, Vec<f32>) {
         let cfg = &self.config;
         let (b, ld) = (cfg.batch, cfg.latent_dim);
-        let guided = cfg.guide.is_some() as usize;
+        let guided = cfg.conditioned() as usize;
         let zw = ld + guided; // generator input after the encoding: latent, then g
         let (n, dims) = (self.sample_points(), cfg.dims());
         if device.clone().inner() != Device::flex() {
@@ -961,7 +1026,7 @@ impl Trainer {
                 if guided == 0 {
                     field.fill(&u, z);
                 } else {
-                    let g = self.fake_guide(s, counters);
+                    let g = self.fake_condition(s, counters);
                     let mut zs = vec![0f32; n * ld];
                     field.fill(&u, &mut zs);
                     for q in 0..n {
@@ -972,7 +1037,7 @@ impl Trainer {
             });
         if guided == 1 {
             for (s, gs) in guides.chunks_mut(n).enumerate() {
-                gs.copy_from_slice(&self.fake_guide(s, counters));
+                gs.copy_from_slice(&self.fake_condition(s, counters));
             }
         }
         let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, dims]), device);
@@ -1011,7 +1076,7 @@ impl Trainer {
                 }
             }
             coords.extend_from_slice(&p);
-            guides.extend(self.fake_guide(s, counters));
+            guides.extend(self.fake_condition(s, counters));
             plans.push((field, lo, hi));
         }
         let fields: Vec<(&LatentField, Vec<f32>, Vec<f32>)> = plans
@@ -1042,7 +1107,7 @@ impl Trainer {
         let (b, crop, cg) = (
             cfg.batch,
             cfg.crop,
-            self.exemplar.channels + cfg.guide.is_some() as usize,
+            self.exemplar.channels + cfg.conditioned() as usize,
         );
         let planar = self.fake_planar_fused(generator, counters);
         Tensor::from_data(TensorData::new(planar, [b, cg, crop, crop]), &self.device)
@@ -1053,10 +1118,11 @@ impl Trainer {
         if !self.config.volume {
             return Batch::Image(self.fake_batch_fused(generator, counters));
         }
-        let (b, s, c) = (self.config.batch, self.config.crop, self.exemplar.channels);
+        let (b, s) = (self.config.batch, self.config.crop);
+        let cg = self.exemplar.channels + self.config.density as usize;
         let planar = self.fake_planar_fused(generator, counters);
         Batch::Volume(Tensor::from_data(
-            TensorData::new(planar, [b, c, s, s, s]),
+            TensorData::new(planar, [b, cg, s, s, s]),
             &self.device,
         ))
     }
@@ -1068,7 +1134,7 @@ impl Trainer {
     fn fake_planar_fused(&self, generator: &FusedGenerator, counters: &[u64]) -> Vec<f32> {
         let cfg = &self.config;
         let (b, c) = (cfg.batch, self.exemplar.channels);
-        let guided = cfg.guide.is_some() as usize;
+        let guided = cfg.conditioned() as usize;
         let cg = c + guided;
         let n = self.sample_points();
         let dims = cfg.dims();
@@ -1081,7 +1147,7 @@ impl Trainer {
             .enumerate()
             .for_each(|(s, (out, gs))| {
                 let (p, field) = self.sample_coordinates(s, counters);
-                let g = self.fake_guide(s, counters);
+                let g = self.fake_condition(s, counters);
                 if !g.is_empty() {
                     gs.copy_from_slice(&g);
                 }
@@ -1262,7 +1328,17 @@ impl Trainer {
             synth = synth.guide(g, side, side); // the training line over the preview's frame
         }
         let pixels = if self.config.dims() == 3 {
-            // A solid texture or a volume previews its depth-0 slice.
+            // A solid texture or a volume previews its depth-0 slice; a density-controlled
+            // volume, at the exemplar's mean density.
+            if self.config.density {
+                let mean = self.exemplar.values.iter().map(|v| v.abs()).sum::<f32>()
+                    / self.exemplar.values.len() as f32;
+                synth = synth.density(crate::synth::DensityRamp {
+                    from: mean,
+                    to: mean,
+                    width: side,
+                });
+            }
             synth
                 .volume_painter()?
                 .render([0, -crop, -crop], 1, side, side)
