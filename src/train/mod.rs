@@ -1014,12 +1014,13 @@ impl Trainer {
         }
         let mut coords = vec![0f32; b * n * dims];
         let mut latent = vec![0f32; b * n * zw];
-        let mut guides = vec![0f32; b * n * guided];
+        let mut guides = vec![0f32; b * n]; // kept for a conditioned run only
         coords
             .par_chunks_mut(n * dims)
             .zip(latent.par_chunks_mut(n * zw))
+            .zip(guides.par_chunks_mut(n))
             .enumerate()
-            .for_each(|(s, (p, z))| {
+            .for_each(|(s, ((p, z), gs))| {
                 let (sample, field) = self.sample_coordinates(s, counters);
                 p.copy_from_slice(&sample);
                 let u: Vec<f32> = p.iter().map(|v| v * cfg.latent_scale).collect();
@@ -1033,12 +1034,11 @@ impl Trainer {
                         z[q * zw..q * zw + ld].copy_from_slice(&zs[q * ld..(q + 1) * ld]);
                         z[q * zw + ld] = g[q];
                     }
+                    gs.copy_from_slice(&g);
                 }
             });
-        if guided == 1 {
-            for (s, gs) in guides.chunks_mut(n).enumerate() {
-                gs.copy_from_slice(&self.fake_condition(s, counters));
-            }
+        if guided == 0 {
+            guides.clear();
         }
         let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, dims]), device);
         let z = Tensor::<2>::from_data(TensorData::new(latent, [b * n, zw]), device);
