@@ -141,6 +141,25 @@ pub struct BenchPlan {
     pub volumes: Vec<usize>,
 }
 
+/// The GPU engines to time on `device`: ipfn's generator kernel and burn's generator on GPUs
+/// (`[true, false]`), one engine elsewhere.
+fn engines(device: DeviceChoice) -> Vec<bool> {
+    if is_gpu(device) {
+        vec![true, false]
+    } else {
+        vec![true]
+    }
+}
+
+/// The device column: the device, and on GPUs which engine painted.
+fn engine_name(device: DeviceChoice, engine: &str) -> String {
+    if is_gpu(device) {
+        format!("{}, {engine}", device_name(device))
+    } else {
+        device_name(device)
+    }
+}
+
 fn is_gpu(device: DeviceChoice) -> bool {
     matches!(device, DeviceChoice::Wgpu | DeviceChoice::Cuda)
 }
@@ -155,53 +174,57 @@ pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
         rows.push(r);
     };
     for &device in &plan.devices {
-        let painter = Synth::new(config.clone(), weights.clone())
-            .seed(1)
-            .device(device)
-            .painter()?;
         let burn_device = device.burn_device()?;
-        for &n in &plan.sizes {
-            let ours = time(plan.runs, || {
-                std::hint::black_box(painter.render(0, 0, n, n));
-            });
-            let (floor, floor_s) = match &burn_device {
-                None => (
-                    "GEMM floor".to_string(),
-                    time(plan.runs, || gemm_floor(&shapes, n * n)),
-                ),
-                Some(d) => (
-                    "matmul floor".to_string(),
-                    time(plan.runs, || {
-                        matmul_floor(&shapes, n * n, device.chunk_points(), d)
-                    }),
-                ),
-            };
-            emit(Row {
-                work: format!("synth {n}²"),
-                device: device_name(device),
-                ours_s: ours,
-                floor,
-                floor_s: Some(floor_s),
-            });
-            if let Some(&(_, authors)) = AUTHORS_H100_SYNTH_S.iter().find(|(s, _)| *s == n)
-                && is_gpu(device)
-            {
+        for kernel in engines(device) {
+            let painter = Synth::new(config.clone(), weights.clone())
+                .seed(1)
+                .device(device)
+                .gpu_kernel(kernel)
+                .painter()?;
+            let name = engine_name(device, painter.engine());
+            for &n in &plan.sizes {
+                let ours = time(plan.runs, || {
+                    std::hint::black_box(painter.render(0, 0, n, n));
+                });
+                let (floor, floor_s) = match &burn_device {
+                    None => (
+                        "GEMM floor".to_string(),
+                        time(plan.runs, || gemm_floor(&shapes, n * n)),
+                    ),
+                    Some(d) => (
+                        "matmul floor".to_string(),
+                        time(plan.runs, || {
+                            matmul_floor(&shapes, n * n, device.chunk_points(), d)
+                        }),
+                    ),
+                };
                 emit(Row {
                     work: format!("synth {n}²"),
-                    device: "authors' PyTorch on one H100 (issue 6, not re-run)".into(),
-                    ours_s: authors,
-                    floor: format!("ours is {:.2}x its time", ours / authors),
-                    floor_s: None,
+                    device: name.clone(),
+                    ours_s: ours,
+                    floor,
+                    floor_s: Some(floor_s),
                 });
-            }
-            if n == 1024 && device == DeviceChoice::Cpu {
-                emit(Row {
-                    work: "synth 1024²".into(),
-                    device: "authors' PyTorch (reference machine, not re-run)".into(),
-                    ours_s: AUTHORS_SYNTH_1024_S,
-                    floor: format!("{:.1}x slower than ours", AUTHORS_SYNTH_1024_S / ours),
-                    floor_s: None,
-                });
+                if let Some(&(_, authors)) = AUTHORS_H100_SYNTH_S.iter().find(|(s, _)| *s == n)
+                    && is_gpu(device)
+                {
+                    emit(Row {
+                        work: format!("synth {n}²"),
+                        device: "authors' PyTorch on one H100 (issue 6, not re-run)".into(),
+                        ours_s: authors,
+                        floor: format!("ours is {:.2}x its time", ours / authors),
+                        floor_s: None,
+                    });
+                }
+                if n == 1024 && device == DeviceChoice::Cpu {
+                    emit(Row {
+                        work: "synth 1024²".into(),
+                        device: "authors' PyTorch (reference machine, not re-run)".into(),
+                        ours_s: AUTHORS_SYNTH_1024_S,
+                        floor: format!("{:.1}x slower than ours", AUTHORS_SYNTH_1024_S / ours),
+                        floor_s: None,
+                    });
+                }
             }
         }
     }
@@ -212,11 +235,17 @@ pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
             .with_crop(64);
         let weights = GeneratorWeights::random(&config);
         let shapes = config.layer_shapes();
-        for &device in &plan.devices {
+        for (device, kernel) in plan
+            .devices
+            .iter()
+            .flat_map(|&d| engines(d).into_iter().map(move |k| (d, k)))
+        {
             let painter = Synth::new(config.clone(), weights.clone())
                 .seed(1)
                 .device(device)
+                .gpu_kernel(kernel)
                 .volume_painter()?;
+            let name = engine_name(device, painter.engine());
             let burn_device = device.burn_device()?;
             for &n in &plan.volumes {
                 // Slabs of about a million voxels, as `ipfn synth --depth` renders them.
@@ -244,7 +273,7 @@ pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
                 };
                 emit(Row {
                     work: format!("volume {n}³ (3D 10x128 MLP)"),
-                    device: device_name(device),
+                    device: name.clone(),
                     ours_s: ours,
                     floor,
                     floor_s: Some(floor_s),

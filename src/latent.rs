@@ -112,6 +112,11 @@ impl LatentField {
         self.latent_dim
     }
 
+    /// The softmax temperature of the corner blend.
+    pub fn sigma(&self) -> f32 {
+        self.sigma
+    }
+
     pub fn source(&self) -> &LatentSource {
         &self.source
     }
@@ -211,6 +216,72 @@ impl LatentField {
     }
 }
 
+/// The lattice vectors that a batch of regions touches, on the host: what [`DeviceLattice`]
+/// and the GPU generator kernel upload.
+#[derive(Debug, Clone)]
+pub struct LatticeBox {
+    /// `[fields * cells, latent_dim]`, row-major over each field's box.
+    pub values: Vec<f32>,
+    /// Lowest lattice index per axis, per field: `[fields, dims]`.
+    pub lows: Vec<i64>,
+    /// Index strides of a box (row-major), per axis.
+    pub strides: Vec<i64>,
+    /// Lattice points in one field's box.
+    pub cells: i64,
+}
+
+impl LatticeBox {
+    /// The lattice points around every `u` with `lo[d] <= u[d] <= hi[d]`, one box per field.
+    ///
+    /// # Shapes
+    /// - `fields`: per field, `(field, lo, hi)` with `dims` entries each (lattice units)
+    pub fn new(fields: &[(&LatentField, Vec<f32>, Vec<f32>)]) -> Self {
+        let (first, _, _) = fields.first().expect("at least one field");
+        let (dims, ld, sigma) = (first.dims, first.latent_dim, first.sigma);
+        let lows: Vec<Vec<i64>> = fields
+            .iter()
+            .map(|(_, lo, _)| lo.iter().map(|v| v.floor() as i64).collect())
+            .collect();
+        // Lattice points per axis: the cells from floor(lo) to floor(hi), plus their far corner.
+        let extent: Vec<i64> = (0..dims)
+            .map(|d| {
+                fields
+                    .iter()
+                    .zip(&lows)
+                    .map(|((_, _, hi), low)| hi[d].floor() as i64 - low[d] + 2)
+                    .max()
+                    .unwrap_or(2)
+            })
+            .collect();
+        let mut strides = vec![1i64; dims];
+        for d in (0..dims.saturating_sub(1)).rev() {
+            strides[d] = strides[d + 1] * extent[d + 1];
+        }
+        let cells = extent.iter().product::<i64>();
+        let mut values = vec![0f32; fields.len() * cells as usize * ld];
+        let mut index = vec![0i64; dims];
+        for (f, ((field, _, _), low)) in fields.iter().zip(&lows).enumerate() {
+            assert!(
+                field.dims == dims && field.latent_dim == ld && field.sigma == sigma,
+                "fields of one lattice box share their shape"
+            );
+            for cell in 0..cells {
+                for d in 0..dims {
+                    index[d] = low[d] + cell / strides[d] % extent[d];
+                }
+                let at = (f * cells as usize + cell as usize) * ld;
+                field.lattice_vector(&index, &mut values[at..at + ld]);
+            }
+        }
+        Self {
+            values,
+            lows: lows.concat(),
+            strides,
+            cells,
+        }
+    }
+}
+
 /// The lattice vectors that a batch of regions touches, held on a burn device, with the blend
 /// of eq. 4 evaluated there: GPU synthesis and training send a few hundred lattice vectors to
 /// the device instead of `latent_dim` floats per point.
@@ -241,51 +312,22 @@ impl DeviceLattice {
     /// - `bounds`: per field, `(lo, hi)` with `dims` entries each (lattice units)
     pub fn new(fields: &[(&LatentField, Vec<f32>, Vec<f32>)], device: &Device) -> Self {
         let (first, _, _) = fields.first().expect("at least one field");
-        let (dims, ld, sigma) = (first.dims, first.latent_dim, first.sigma);
-        let lows: Vec<Vec<i64>> = fields
-            .iter()
-            .map(|(_, lo, _)| lo.iter().map(|v| v.floor() as i64).collect())
-            .collect();
-        // Lattice points per axis: the cells from floor(lo) to floor(hi), plus their far corner.
-        let extent: Vec<i64> = (0..dims)
-            .map(|d| {
-                fields
-                    .iter()
-                    .zip(&lows)
-                    .map(|((_, _, hi), low)| hi[d].floor() as i64 - low[d] + 2)
-                    .max()
-                    .unwrap_or(2)
-            })
-            .collect();
-        let mut strides = vec![1i64; dims];
-        for d in (0..dims.saturating_sub(1)).rev() {
-            strides[d] = strides[d + 1] * extent[d + 1];
-        }
-        let cells = extent.iter().product::<i64>();
-        let mut values = vec![0f32; fields.len() * cells as usize * ld];
-        let mut index = vec![0i64; dims];
-        for (f, ((field, _, _), low)) in fields.iter().zip(&lows).enumerate() {
-            assert!(
-                field.dims == dims && field.latent_dim == ld && field.sigma == sigma,
-                "fields of one DeviceLattice share their shape"
-            );
-            for cell in 0..cells {
-                for d in 0..dims {
-                    index[d] = low[d] + cell / strides[d] % extent[d];
-                }
-                let at = (f * cells as usize + cell as usize) * ld;
-                field.lattice_vector(&index, &mut values[at..at + ld]);
-            }
-        }
+        let lattice = LatticeBox::new(fields);
         let n = fields.len();
         Self {
-            table: Tensor::from_data(TensorData::new(values, [n * cells as usize, ld]), device),
-            lows: Tensor::from_data(TensorData::new(lows.concat(), [n, dims]), device),
-            strides,
-            cells,
-            dims,
-            latent_dim: ld,
-            sigma,
+            table: Tensor::from_data(
+                TensorData::new(
+                    lattice.values,
+                    [n * lattice.cells as usize, first.latent_dim],
+                ),
+                device,
+            ),
+            lows: Tensor::from_data(TensorData::new(lattice.lows, [n, first.dims]), device),
+            strides: lattice.strides,
+            cells: lattice.cells,
+            dims: first.dims,
+            latent_dim: first.latent_dim,
+            sigma: first.sigma,
         }
     }
 

@@ -17,6 +17,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::generator::fused::{CHUNK_POINTS, FusedGenerator, Scratch};
+use crate::generator::kernel::KernelGenerator;
 use crate::generator::{Generator, GeneratorConfig, GeneratorWeights};
 use crate::guidance::Guide;
 use crate::input_error;
@@ -157,7 +158,46 @@ enum Engine {
         device: Device,
         /// Points per forward pass.
         chunk: usize,
+        /// The generator as one CubeCL kernel, where the device runs CubeCL and the model fits
+        /// (else the burn generator paints).
+        kernel: Option<Box<KernelGenerator>>,
     },
+}
+
+impl Engine {
+    /// The evaluator for `weights` on `device` (`None`: the CPU).
+    fn new(weights: GeneratorWeights, device: Option<Device>, chunk: usize, kernel: bool) -> Self {
+        match device {
+            None => Engine::Fused(FusedGenerator::new(weights)),
+            Some(device) => Engine::Burn {
+                kernel: if kernel {
+                    KernelGenerator::new(&weights, &device).map(Box::new)
+                } else {
+                    None
+                },
+                generator: Generator::from_weights(&weights, &device),
+                device,
+                chunk,
+            },
+        }
+    }
+
+    /// What paints: `"fused cpu"`, `"kernel"` (the generator kernel on a GPU) or `"burn"`.
+    fn name(&self) -> &'static str {
+        match self {
+            Engine::Fused(_) => "fused cpu",
+            Engine::Burn {
+                kernel: Some(_), ..
+            } => "kernel",
+            Engine::Burn { .. } => "burn",
+        }
+    }
+}
+
+/// Whether GPU synthesis uses the generator kernel ([`KernelGenerator`]) where it can:
+/// `IPFN_GPU_KERNEL=0` selects the burn generator instead (for comparison in `ipfn bench`).
+pub fn gpu_kernel_enabled() -> bool {
+    std::env::var("IPFN_GPU_KERNEL").map_or(true, |v| v != "0")
 }
 
 /// Points per burn forward pass on a GPU: bounds device memory (`width` activations per point)
@@ -236,6 +276,7 @@ pub struct Synth {
     tile_volume: Option<[usize; 3]>,
     density: Option<DensityRamp>,
     device: DeviceChoice,
+    gpu_kernel: bool,
 }
 
 /// Densities typical of truncated SDFs (mean |sdf| 0.1 to 0.4) are spread over about ±1 before
@@ -293,6 +334,7 @@ impl Synth {
             density: None,
             tile_volume: None,
             device: DeviceChoice::Cpu,
+            gpu_kernel: gpu_kernel_enabled(),
         }
     }
 
@@ -362,6 +404,13 @@ impl Synth {
         self
     }
 
+    /// Whether GPU devices paint with ipfn's generator kernel where it applies (default: yes,
+    /// unless `IPFN_GPU_KERNEL=0`) or with burn's generator.
+    pub fn gpu_kernel(mut self, on: bool) -> Self {
+        self.gpu_kernel = on;
+        self
+    }
+
     /// Validates the options and prepares the evaluator.
     pub fn painter(self) -> Result<Painter> {
         if self.config.dims != 2 {
@@ -417,14 +466,12 @@ impl Synth {
             field = field.periodic(&adjustment.lattice_period);
             tile = Some(adjustment);
         }
-        let engine = match self.device.burn_device()? {
-            None => Engine::Fused(FusedGenerator::new(weights)),
-            Some(device) => Engine::Burn {
-                generator: Generator::from_weights(&weights, &device),
-                device,
-                chunk: self.device.chunk_points(),
-            },
-        };
+        let engine = Engine::new(
+            weights,
+            self.device.burn_device()?,
+            self.device.chunk_points(),
+            self.gpu_kernel,
+        );
         Ok(Painter {
             engine,
             field,
@@ -496,6 +543,11 @@ fn mirror_source(i: i64, n: usize) -> i64 {
 impl Painter {
     pub fn channels(&self) -> usize {
         self.channels
+    }
+
+    /// What paints: `"fused cpu"`, `"kernel"` (the generator kernel on a GPU) or `"burn"`.
+    pub fn engine(&self) -> &'static str {
+        self.engine.name()
     }
 
     /// What `tile` changed, if it was asked for.
@@ -593,6 +645,7 @@ impl Painter {
                 generator,
                 device,
                 chunk,
+                kernel,
             } => {
                 let ys: Vec<f32> = (0..height as i64)
                     .map(|r| self.grid.coordinate(y0 + r))
@@ -601,6 +654,17 @@ impl Painter {
                     .map(|col| self.grid.coordinate(x0 + col))
                     .collect();
                 let mut g = Vec::new();
+                if let Some(kernel) = kernel {
+                    return kernel.render(
+                        &self.field,
+                        &self.latent_scale,
+                        &[ys, xs],
+                        |start, count| {
+                            self.guide_values(y0, x0, width, start, count, &mut g);
+                            g.clone()
+                        },
+                    );
+                }
                 out = render_on_device(
                     generator,
                     device,
@@ -755,14 +819,12 @@ impl Synth {
             field,
             latent_scale,
             grid,
-            engine: match self.device.burn_device()? {
-                None => Engine::Fused(FusedGenerator::new(weights)),
-                Some(device) => Engine::Burn {
-                    generator: Generator::from_weights(&weights, &device),
-                    device,
-                    chunk: self.device.chunk_points(),
-                },
-            },
+            engine: Engine::new(
+                weights,
+                self.device.burn_device()?,
+                self.device.chunk_points(),
+                self.gpu_kernel,
+            ),
             tile,
             density: self.density,
         })
@@ -772,6 +834,11 @@ impl Synth {
 impl VolumePainter {
     pub fn channels(&self) -> usize {
         self.channels
+    }
+
+    /// What paints: `"fused cpu"`, `"kernel"` (the generator kernel on a GPU) or `"burn"`.
+    pub fn engine(&self) -> &'static str {
+        self.engine.name()
     }
 
     /// What `tile_volume` changed, if it was asked for.
@@ -790,21 +857,31 @@ impl VolumePainter {
                 generator,
                 device,
                 chunk,
+                kernel,
             } => {
                 let axis = |o: i64, n: usize| -> Vec<f32> {
                     (0..n as i64).map(|i| self.grid.coordinate(o + i)).collect()
                 };
+                let axes = [
+                    axis(origin[0], depth),
+                    axis(origin[1], height),
+                    axis(origin[2], width),
+                ];
+                if let Some(kernel) = kernel {
+                    return kernel.render(
+                        &self.field,
+                        &self.latent_scale,
+                        &axes,
+                        |start, count| self.densities(origin[2], width, start, count),
+                    );
+                }
                 return render_on_device(
                     generator,
                     device,
                     *chunk,
                     &self.field,
                     &self.latent_scale,
-                    &[
-                        axis(origin[0], depth),
-                        axis(origin[1], height),
-                        axis(origin[2], width),
-                    ],
+                    &axes,
                     self.channels,
                     |start, count| self.densities(origin[2], width, start, count),
                 );

@@ -8,8 +8,35 @@
 //! Two evaluators share one set of weights ([`GeneratorWeights`]):
 //! - [`Generator`], a burn module: differentiable (training) and runs on any burn device (flex, wgpu).
 //! - [`fused::FusedGenerator`], a fused CPU loop for fast synthesis.
+//! - [`kernel::KernelGenerator`], one CubeCL kernel for fast synthesis on GPUs (wgpu, CUDA).
 
 pub mod fused;
+#[cfg(any(feature = "wgpu", feature = "cuda"))]
+pub mod kernel;
+/// Builds without a GPU feature have no generator kernel.
+#[cfg(not(any(feature = "wgpu", feature = "cuda")))]
+pub mod kernel {
+    use crate::latent::LatentField;
+
+    #[derive(Debug)]
+    pub enum KernelGenerator {}
+
+    impl KernelGenerator {
+        pub fn new(_: &super::GeneratorWeights, _: &burn::tensor::Device) -> Option<Self> {
+            None
+        }
+
+        pub fn render(
+            &self,
+            _: &LatentField,
+            _: &[f32],
+            _: &[Vec<f32>],
+            _: impl FnMut(usize, usize) -> Vec<f32>,
+        ) -> Vec<f32> {
+            match *self {}
+        }
+    }
+}
 
 use burn::module::Param;
 use burn::nn::{Linear, LinearConfig};
