@@ -216,6 +216,22 @@ impl LatentField {
     }
 }
 
+/// The lattice-space bounds `(lo, hi)` of the grid `axes[0] x axes[1] (x axes[2])` looked up at
+/// `u = p * latent_scale`, for [`LatticeBox::new`] and [`DeviceLattice::new`]. GPUs compute
+/// `u` as here (one f32 product), so the bounds hold there.
+pub fn grid_lattice_bounds(axes: &[Vec<f32>], latent_scale: &[f32]) -> (Vec<f32>, Vec<f32>) {
+    axes.iter()
+        .zip(latent_scale)
+        .map(|(a, &s)| {
+            a.iter()
+                .map(|&v| v * s)
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), u| {
+                    (l.min(u), h.max(u))
+                })
+        })
+        .unzip()
+}
+
 /// The lattice vectors that a batch of regions touches, on the host: what [`DeviceLattice`]
 /// and the GPU generator kernel upload.
 #[derive(Debug, Clone)]

@@ -22,7 +22,7 @@ use crate::generator::{Generator, GeneratorConfig, GeneratorWeights};
 use crate::guidance::Guide;
 use crate::input_error;
 use crate::io::{ImageWriter, OutputFormat};
-use crate::latent::{DeviceLattice, LatentField};
+use crate::latent::{DeviceLattice, LatentField, grid_lattice_bounds};
 use crate::sample::PixelGrid;
 
 /// Where the generator runs.
@@ -153,28 +153,29 @@ pub fn wgpu_device() -> Result<Device> {
 /// The evaluator behind a [`Painter`].
 enum Engine {
     Fused(FusedGenerator),
+    /// The generator as one CubeCL kernel, where the device runs CubeCL and the model fits.
+    Kernel(Box<KernelGenerator>),
     Burn {
         generator: Generator,
         device: Device,
         /// Points per forward pass.
         chunk: usize,
-        /// The generator as one CubeCL kernel, where the device runs CubeCL and the model fits
-        /// (else the burn generator paints).
-        kernel: Option<Box<KernelGenerator>>,
     },
 }
 
 impl Engine {
-    /// The evaluator for `weights` on `device` (`None`: the CPU).
+    /// The evaluator for `weights` on `device` (`None`: the CPU); `kernel` lets GPU devices
+    /// use the generator kernel.
     fn new(weights: GeneratorWeights, device: Option<Device>, chunk: usize, kernel: bool) -> Self {
-        match device {
-            None => Engine::Fused(FusedGenerator::new(weights)),
-            Some(device) => Engine::Burn {
-                kernel: if kernel {
-                    KernelGenerator::new(&weights, &device).map(Box::new)
-                } else {
-                    None
-                },
+        let Some(device) = device else {
+            return Engine::Fused(FusedGenerator::new(weights));
+        };
+        match kernel
+            .then(|| KernelGenerator::new(&weights, &device))
+            .flatten()
+        {
+            Some(kernel) => Engine::Kernel(Box::new(kernel)),
+            None => Engine::Burn {
                 generator: Generator::from_weights(&weights, &device),
                 device,
                 chunk,
@@ -186,10 +187,42 @@ impl Engine {
     fn name(&self) -> &'static str {
         match self {
             Engine::Fused(_) => "fused cpu",
-            Engine::Burn {
-                kernel: Some(_), ..
-            } => "kernel",
+            Engine::Kernel(_) => "kernel",
             Engine::Burn { .. } => "burn",
+        }
+    }
+
+    /// Renders the grid `axes[0] x axes[1] (x axes[2])` on the device engines (the fused CPU
+    /// evaluator renders its own chunks: `None`). `guide(start, count)` gives the guidance
+    /// values of points `start..start + count`, empty for an unguided model.
+    ///
+    /// # Shapes
+    /// - output: `[points, channels]`, row-major over the axes
+    fn render_on_device(
+        &self,
+        field: &LatentField,
+        latent_scale: &[f32],
+        axes: &[Vec<f32>],
+        channels: usize,
+        guide: impl FnMut(usize, usize) -> Vec<f32>,
+    ) -> Option<Vec<f32>> {
+        match self {
+            Engine::Fused(_) => None,
+            Engine::Kernel(kernel) => Some(kernel.render(field, latent_scale, axes, guide)),
+            Engine::Burn {
+                generator,
+                device,
+                chunk,
+            } => Some(render_on_device(
+                generator,
+                device,
+                *chunk,
+                field,
+                latent_scale,
+                axes,
+                channels,
+                guide,
+            )),
         }
     }
 }
@@ -641,12 +674,7 @@ impl Painter {
                         },
                     );
             }
-            Engine::Burn {
-                generator,
-                device,
-                chunk,
-                kernel,
-            } => {
+            gpu => {
                 let ys: Vec<f32> = (0..height as i64)
                     .map(|r| self.grid.coordinate(y0 + r))
                     .collect();
@@ -654,30 +682,18 @@ impl Painter {
                     .map(|col| self.grid.coordinate(x0 + col))
                     .collect();
                 let mut g = Vec::new();
-                if let Some(kernel) = kernel {
-                    return kernel.render(
+                out = gpu
+                    .render_on_device(
                         &self.field,
                         &self.latent_scale,
                         &[ys, xs],
+                        c,
                         |start, count| {
                             self.guide_values(y0, x0, width, start, count, &mut g);
                             g.clone()
                         },
-                    );
-                }
-                out = render_on_device(
-                    generator,
-                    device,
-                    *chunk,
-                    &self.field,
-                    &self.latent_scale,
-                    &[ys, xs],
-                    c,
-                    |start, count| {
-                        self.guide_values(y0, x0, width, start, count, &mut g);
-                        g.clone()
-                    },
-                );
+                    )
+                    .expect("device engines render grids");
             }
         }
         out
@@ -853,12 +869,7 @@ impl VolumePainter {
     pub fn render(&self, origin: [i64; 3], depth: usize, height: usize, width: usize) -> Vec<f32> {
         let generator = match &self.engine {
             Engine::Fused(generator) => generator,
-            Engine::Burn {
-                generator,
-                device,
-                chunk,
-                kernel,
-            } => {
+            gpu => {
                 let axis = |o: i64, n: usize| -> Vec<f32> {
                     (0..n as i64).map(|i| self.grid.coordinate(o + i)).collect()
                 };
@@ -867,24 +878,15 @@ impl VolumePainter {
                     axis(origin[1], height),
                     axis(origin[2], width),
                 ];
-                if let Some(kernel) = kernel {
-                    return kernel.render(
+                return gpu
+                    .render_on_device(
                         &self.field,
                         &self.latent_scale,
                         &axes,
+                        self.channels,
                         |start, count| self.densities(origin[2], width, start, count),
-                    );
-                }
-                return render_on_device(
-                    generator,
-                    device,
-                    *chunk,
-                    &self.field,
-                    &self.latent_scale,
-                    &axes,
-                    self.channels,
-                    |start, count| self.densities(origin[2], width, start, count),
-                );
+                    )
+                    .expect("device engines render grids");
             }
         };
         let c = self.channels;
@@ -1052,19 +1054,7 @@ fn render_on_device(
     if total == 0 {
         return out;
     }
-    // The lattice box: u = p * scale is computed on the device exactly as here (one f32
-    // product), so these bounds hold there.
-    let (lo, hi): (Vec<f32>, Vec<f32>) = axes
-        .iter()
-        .zip(latent_scale)
-        .map(|(a, &s)| {
-            a.iter()
-                .map(|&v| v * s)
-                .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), u| {
-                    (l.min(u), h.max(u))
-                })
-        })
-        .unzip();
+    let (lo, hi) = grid_lattice_bounds(axes, latent_scale);
     let lattice = DeviceLattice::new(&[(field, lo, hi)], device);
     let axis: Vec<Tensor<1>> = axes
         .iter()

@@ -19,7 +19,7 @@ use cubecl::prelude::*;
 use cubecl::server::Handle;
 
 use super::GeneratorWeights;
-use crate::latent::{LatentField, LatticeBox};
+use crate::latent::{LatentField, LatticeBox, grid_lattice_bounds};
 
 /// Points per cube.
 const TILE: usize = 32;
@@ -314,17 +314,7 @@ impl KernelGenerator {
             total <= i32::MAX as usize,
             "a box of at most 2^31 points per render"
         );
-        let (lo, hi): (Vec<f32>, Vec<f32>) = axes
-            .iter()
-            .zip(latent_scale)
-            .map(|(a, &s)| {
-                a.iter()
-                    .map(|&v| v * s)
-                    .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), u| {
-                        (l.min(u), h.max(u))
-                    })
-            })
-            .unzip();
+        let (lo, hi) = grid_lattice_bounds(axes, latent_scale);
         let lattice = LatticeBox::new(&[(field, lo, hi)]);
         let ld = field.latent_dim();
         let guided = self.input_width > self.octaves * 2 * dims + ld;
