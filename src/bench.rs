@@ -92,6 +92,29 @@ pub fn gemm_floor(shapes: &[(usize, usize)], points: usize) {
     );
 }
 
+/// The floor beside a synthesis row on `device`, timed now over `points` points: its name and
+/// median time. The GEMM floor on the fused CPU evaluator, the matmul floor on a burn device.
+fn floor(
+    device: DeviceChoice,
+    burn_device: Option<&Device>,
+    shapes: &[(usize, usize)],
+    points: usize,
+    runs: usize,
+) -> (String, f64) {
+    match burn_device {
+        None => (
+            "GEMM floor".into(),
+            time(runs, || gemm_floor(shapes, points)),
+        ),
+        Some(d) => (
+            "matmul floor".into(),
+            time(runs, || {
+                matmul_floor(shapes, points, device.chunk_points(), d)
+            }),
+        ),
+    }
+}
+
 /// The shipped honeycomb generator (the authors' architecture: 10 hidden layers of 128).
 pub fn shipped_model() -> Result<(GeneratorConfig, GeneratorWeights)> {
     let shipped = Checkpoint::from_bytes(
@@ -186,18 +209,8 @@ pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
                 let ours = time(plan.runs, || {
                     std::hint::black_box(painter.render(0, 0, n, n));
                 });
-                let (floor, floor_s) = match &burn_device {
-                    None => (
-                        "GEMM floor".to_string(),
-                        time(plan.runs, || gemm_floor(&shapes, n * n)),
-                    ),
-                    Some(d) => (
-                        "matmul floor".to_string(),
-                        time(plan.runs, || {
-                            matmul_floor(&shapes, n * n, device.chunk_points(), d)
-                        }),
-                    ),
-                };
+                let (floor, floor_s) =
+                    floor(device, burn_device.as_ref(), &shapes, n * n, plan.runs);
                 emit(Row {
                     work: format!("synth {n}²"),
                     device: name.clone(),
@@ -259,18 +272,13 @@ pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
                     }
                 });
                 let voxels = n * n * n;
-                let (floor, floor_s) = match &burn_device {
-                    None => (
-                        "GEMM floor".to_string(),
-                        time(plan.runs.min(2), || gemm_floor(&shapes, voxels)),
-                    ),
-                    Some(d) => (
-                        "matmul floor".to_string(),
-                        time(plan.runs.min(2), || {
-                            matmul_floor(&shapes, voxels, device.chunk_points(), d)
-                        }),
-                    ),
-                };
+                let (floor, floor_s) = floor(
+                    device,
+                    burn_device.as_ref(),
+                    &shapes,
+                    voxels,
+                    plan.runs.min(2),
+                );
                 emit(Row {
                     work: format!("volume {n}³ (3D 10x128 MLP)"),
                     device: name.clone(),

@@ -1235,14 +1235,7 @@ fn synth_slice(
     }
     format.check_size(&args.out, cols, rows, model.config.channels)?;
     let start = Instant::now();
-    let mut builder = Synth::new(model.config, model.weights)
-        .seed(args.seed)
-        .zoom(args.zoom)
-        .device(args.device.parse()?);
-    if let Some((from, to)) = args.density {
-        builder = builder.density(crate::synth::DensityRamp { from, to, width });
-    }
-    let painter = builder.volume_painter()?;
+    let painter = volume_synth(args, model.config, model.weights, width)?.volume_painter()?;
     let values = painter.render(origin, d, h, w);
     let mut writer =
         crate::io::ImageWriter::create(&args.out, format, cols, rows, painter.channels())?;
@@ -1260,6 +1253,24 @@ fn synth_slice(
     Ok(())
 }
 
+/// The `Synth` of a 3D model with the flags volumes and slices share: seed, zoom, device and a
+/// density ramp along columns `0..width`.
+fn volume_synth(
+    args: &SynthArgs,
+    config: GeneratorConfig,
+    weights: GeneratorWeights,
+    width: usize,
+) -> Result<Synth> {
+    let mut builder = Synth::new(config, weights)
+        .seed(args.seed)
+        .zoom(args.zoom)
+        .device(args.device.parse()?);
+    if let Some((from, to)) = args.density {
+        builder = builder.density(crate::synth::DensityRamp { from, to, width });
+    }
+    Ok(builder)
+}
+
 /// `ipfn synth --depth D`: a volume from a 3D model, streamed to .npy in slabs.
 fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> Result<()> {
     if depth == 0 {
@@ -1272,13 +1283,7 @@ fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> 
     }
     crate::io::check_destination(&args.out)?;
     let model = choose_model(args.model.as_deref(), Path::new("."))?;
-    let mut builder = Synth::new(model.config, model.weights)
-        .seed(args.seed)
-        .zoom(args.zoom)
-        .device(args.device.parse()?);
-    if let Some((from, to)) = args.density {
-        builder = builder.density(crate::synth::DensityRamp { from, to, width });
-    }
+    let mut builder = volume_synth(args, model.config, model.weights, width)?;
     if args.tile {
         builder = builder.tile_volume(depth, height, width);
     }

@@ -650,9 +650,9 @@ impl Painter {
     fn render_plane(&self, y0: i64, x0: i64, width: usize, height: usize) -> Vec<f32> {
         let total = width * height;
         let c = self.channels;
-        let mut out = vec![0f32; total * c];
         match &self.engine {
             Engine::Fused(generator) => {
+                let mut out = vec![0f32; total * c];
                 out.par_chunks_mut(CHUNK_POINTS * c)
                     .enumerate()
                     .for_each_init(
@@ -673,6 +673,7 @@ impl Painter {
                             );
                         },
                     );
+                out
             }
             gpu => {
                 let ys: Vec<f32> = (0..height as i64)
@@ -682,21 +683,19 @@ impl Painter {
                     .map(|col| self.grid.coordinate(x0 + col))
                     .collect();
                 let mut g = Vec::new();
-                out = gpu
-                    .render_on_device(
-                        &self.field,
-                        &self.latent_scale,
-                        &[ys, xs],
-                        c,
-                        |start, count| {
-                            self.guide_values(y0, x0, width, start, count, &mut g);
-                            g.clone()
-                        },
-                    )
-                    .expect("device engines render grids");
+                gpu.render_on_device(
+                    &self.field,
+                    &self.latent_scale,
+                    &[ys, xs],
+                    c,
+                    |start, count| {
+                        self.guide_values(y0, x0, width, start, count, &mut g);
+                        g.clone()
+                    },
+                )
+                .expect("device engines render grids")
             }
         }
-        out
     }
 
     /// Renders `width x height` pixels into `path` in row bands of about `band_pixels` pixels,

@@ -15,6 +15,7 @@
 //! Every point is independent, so the result does not depend on how a region is split into
 //! launches.
 
+use cubecl::MemoryScope;
 use cubecl::prelude::*;
 use cubecl::server::Handle;
 
@@ -401,6 +402,27 @@ impl KernelGenerator {
         }
         read(pending.take(), &mut out);
         out
+    }
+
+    /// The largest single buffer this process has allocated on the kernel's device so far, in
+    /// bytes (every memory pool of every stream, burn's included). The kernel's own buffers are
+    /// its weights, a region's lattice vectors and coordinates, and one launch's guidance and
+    /// output, so for a render this is bounded by the launch, not by the size of the region.
+    pub fn largest_device_allocation(&self) -> u64 {
+        self.client
+            .memory_report(MemoryScope::Device)
+            .streams
+            .iter()
+            .flat_map(|stream| {
+                let pools = &stream.pools;
+                pools
+                    .dynamic
+                    .iter()
+                    .chain([&pools.persistent, &pools.dedicated])
+            })
+            .map(|pool| pool.largest_alloc)
+            .max()
+            .unwrap_or(0)
     }
 }
 

@@ -746,19 +746,14 @@ impl Trainer {
     /// # Shapes
     /// - output: `[batch, 1, crop, crop, crop]`
     pub fn real_volume_batch(&self, counters: &[u64]) -> Tensor<5> {
-        let (b, s, ex) = (self.config.batch, self.config.crop, &self.exemplar);
+        let (b, s) = (self.config.batch, self.config.crop);
         let cg = 1 + self.config.density as usize; // + the density channel
         let n = s * s * s;
         let mut data = vec![0f32; b * cg * n];
         for (i, sample) in data.chunks_mut(cg * n).enumerate() {
             let origin = self.volume_crop_origin(stream::REAL_CROP, i, counters);
-            let (front, top, left) = origin;
-            for z in 0..s {
-                for y in 0..s {
-                    let from = ((front + z) * ex.height + top + y) * ex.width + left;
-                    sample[(z * s + y) * s..(z * s + y + 1) * s]
-                        .copy_from_slice(&ex.values[from..from + s]);
-                }
+            for (row, values) in sample[..n].chunks_mut(s).zip(self.cube_rows(origin)) {
+                row.copy_from_slice(values);
             }
             if self.config.density {
                 let d = self.crop_density(origin);
@@ -788,19 +783,26 @@ impl Trainer {
 
     /// The generator's density input for the cube at `origin`: the mean |sdf| of its
     /// truncated SDF, through [`crate::synth::density_input`].
-    fn crop_density(&self, (front, top, left): (usize, usize, usize)) -> f32 {
-        let (s, ex) = (self.config.crop, &self.exemplar);
-        let mut total = 0f64;
-        for z in 0..s {
-            for y in 0..s {
-                let from = ((front + z) * ex.height + top + y) * ex.width + left;
-                total += ex.values[from..from + s]
-                    .iter()
-                    .map(|v| v.abs() as f64)
-                    .sum::<f64>();
-            }
-        }
+    fn crop_density(&self, origin: (usize, usize, usize)) -> f32 {
+        let s = self.config.crop;
+        let total: f64 = self
+            .cube_rows(origin)
+            .map(|row| row.iter().map(|v| v.abs() as f64).sum::<f64>())
+            .sum();
         crate::synth::density_input((total / (s * s * s) as f64) as f32)
+    }
+
+    /// The rows of the exemplar's `crop`³ cube at `origin` (depth, row, col), in order: `crop²`
+    /// slices of `crop` voxels.
+    fn cube_rows(
+        &self,
+        (front, top, left): (usize, usize, usize),
+    ) -> impl Iterator<Item = &[f32]> + '_ {
+        let (s, ex) = (self.config.crop, &self.exemplar);
+        (0..s * s).map(move |zy| {
+            let from = ((front + zy / s) * ex.height + top + zy % s) * ex.width + left;
+            &ex.values[from..from + s]
+        })
     }
 
     /// The critic's real input of this run's kind.
