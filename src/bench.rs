@@ -9,9 +9,10 @@
 //!     the chunks our burn path uses there (4,096 points on flex, 65,536 on a GPU): what the
 //!     framework's own kernels do for these shapes;
 //! - training: one iteration (5 critic + 5 generator steps, batch 4 (or `batches`), crop 128, a
-//!   256² RGB exemplar), after one warm-up iteration, beside the authors' PyTorch code measured
-//!   on the 2-core reference machine (DESIGN.md) or, on a GPU, on one H100 (issue 6); neither is
-//!   re-run here;
+//!   256² RGB exemplar), after one warm-up iteration, beside the generator's FLOPs of that
+//!   iteration (20 MLP passes over the batch's crops) as a floor measured now (GEMM floor on
+//!   CPU devices, matmul floor on GPUs), and the authors' PyTorch code measured on the 2-core
+//!   reference machine (DESIGN.md) or, on a GPU, on one H100 (issue 6), not re-run here;
 //! - volumes (`volumes`): cubes painted in slabs by a 3D generator of the paper's size, beside
 //!   the same floors and the paper's 22.9 s for 512³.
 //!
@@ -321,36 +322,52 @@ pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
                     crop: 128,
                     ..TrainConfig::default()
                 };
-                let mut trainer =
-                    Trainer::new(config, exemplar.path(), run_dir.path(), &burn_device)?;
+                let mut trainer = Trainer::new(
+                    config.clone(),
+                    exemplar.path(),
+                    run_dir.path(),
+                    &burn_device,
+                )?;
                 let ours = time(plan.runs.min(2), || {
                     trainer.step();
+                });
+                // The generator's share of the iteration's FLOPs: one forward pass per critic
+                // step, and per generator step a forward and a backward (input and weight
+                // gradients, two more passes' worth). The critic's convolutions are not in it.
+                let passes = config.critic_steps + 3 * config.generator_steps;
+                let points = passes * batch * config.crop * config.crop;
+                let gpu_device = is_gpu(device).then_some(&burn_device);
+                let shapes = config.generator_config(3).layer_shapes();
+                let (floor_name, floor_s) =
+                    floor(device, gpu_device, &shapes, points, plan.runs.min(2));
+                let work = format!("train iteration (batch {batch}, crop 128)");
+                emit(Row {
+                    work: work.clone(),
+                    device: device_name(device),
+                    ours_s: ours,
+                    floor: format!("generator {floor_name} ({passes} MLP passes, no critic)"),
+                    floor_s: Some(floor_s),
                 });
                 let reference = if is_gpu(device) {
                     AUTHORS_H100_ITERATION_S
                         .iter()
                         .find(|(b, _)| *b == batch)
-                        .map(|(_, t)| {
-                            format!(
-                                "authors' PyTorch on one H100 {t:.3} s (issue 6, not re-run): {:.2}x",
-                                t / ours
-                            )
-                        })
+                        .map(|&(_, t)| ("authors' PyTorch on one H100 (issue 6, not re-run)", t))
                 } else {
-                    (batch == 4).then(|| {
-                        format!(
-                            "authors' PyTorch {AUTHORS_ITERATION_S:.1} s on the reference machine (not re-run): {:.1}x",
-                            AUTHORS_ITERATION_S / ours
-                        )
-                    })
+                    (batch == 4).then_some((
+                        "authors' PyTorch (reference machine, not re-run)",
+                        AUTHORS_ITERATION_S,
+                    ))
                 };
-                emit(Row {
-                    work: format!("train iteration (batch {batch}, crop 128)"),
-                    device: device_name(device),
-                    ours_s: ours,
-                    floor: reference.unwrap_or_else(|| "-".into()),
-                    floor_s: None,
-                });
+                if let Some((who, t)) = reference {
+                    emit(Row {
+                        work,
+                        device: who.into(),
+                        ours_s: t,
+                        floor: format!("{:.1}x ours", t / ours),
+                        floor_s: None,
+                    });
+                }
             }
         }
     }

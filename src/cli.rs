@@ -293,8 +293,8 @@ pub struct VoxelizeArgs {
     /// Empty margin around the mesh's bounding box, as a fraction of its largest side.
     #[arg(long, default_value_t = 0.05)]
     pub padding: f32,
-    /// Output volume (.npy, `[res, res, res, 1]`, signed distance in units of the volume's side,
-    /// negative inside).
+    /// Output volume: .npy `[res, res, res, 1]`, or .raw (bare little-endian float32); signed
+    /// distance in units of the volume's side, negative inside.
     #[arg(long, short, value_name = "PATH")]
     pub out: PathBuf,
 }
@@ -337,7 +337,7 @@ pub struct SynthArgs {
     /// Output height in pixels (overrides --size).
     #[arg(long, value_name = "H")]
     pub height: Option<usize>,
-    /// Depth in voxels: paint a volume (`[D, H, W, C]` .npy) with a 3D model.
+    /// Depth in voxels: paint a volume (`[D, H, W, C]`, .npy or .raw) with a 3D model.
     #[arg(long, value_name = "D")]
     pub depth: Option<usize>,
     /// With a volume: also write the zero level set of the volume's first channel as a mesh
@@ -383,8 +383,13 @@ pub struct SynthArgs {
     /// output, x and y in [-1, 1]), or a grayscale image of the output's size (g = 2v - 1).
     #[arg(long, value_name = "LINE|IMAGE", allow_hyphen_values = true)]
     pub guide: Option<String>,
-    /// Output file: .png (8 or 16 bit), .exr (float) or .npy (raw floats in [-1, 1], [H, W, C]).
-    #[arg(long, short, default_value = "synth.png", value_name = "PATH")]
+    /// Output file: .png (8 or 16 bit), .exr (float) or .npy (raw floats in [-1, 1], [H, W, C]);
+    /// a volume: .npy ([D, H, W, C] float32) or .raw (bare little-endian float32). Default
+    /// synth.png, or synth.npy for a volume.
+    #[arg(long = "out", short = 'o', value_name = "PATH")]
+    pub out_path: Option<PathBuf>,
+    /// `--out`, or the default for what is painted (set by `synth`).
+    #[arg(skip)]
     pub out: PathBuf,
     /// Bits per channel for PNG output: 8 or 16. Default 8; a map set's maps keep their
     /// inputs' depth.
@@ -576,7 +581,7 @@ pub fn most_recent_model(dir: &Path) -> Option<PathBuf> {
         .map(|(_, p)| p.strip_prefix(dir).map(Path::to_path_buf).unwrap_or(p))
 }
 
-fn synth(args: SynthArgs) -> Result<()> {
+fn synth(mut args: SynthArgs) -> Result<()> {
     let device: DeviceChoice = args.device.parse()?;
     device.burn_device()?; // a missing GPU or driver fails here, before any work
     let width = args.width.or(args.size.map(|s| s.width)).unwrap_or(512);
@@ -587,6 +592,11 @@ fn synth(args: SynthArgs) -> Result<()> {
         ));
     }
     let depth = args.depth.or(args.size.and_then(|s| s.depth));
+    let volume = depth.is_some() && args.slice.is_none();
+    args.out = args
+        .out_path
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(if volume { "synth.npy" } else { "synth.png" }));
     if let Some(slice) = args.slice {
         return synth_slice(&args, [depth.unwrap_or(width), height, width], slice);
     }
@@ -877,9 +887,13 @@ fn train(args: TrainArgs) -> Result<()> {
         let stats = trainer.step();
         trainer.append_metrics(&stats)?;
         let it = trainer.iteration;
+        let k: Vec<String> = stats.k.iter().map(|k| format!("{k:.4}")).collect();
         let line = format!(
-            "W {:.4}  gp {:.4}  G {:.4}  K {:.4} {:.4}",
-            stats.wasserstein, stats.penalty, stats.generator_loss, stats.k[0], stats.k[1]
+            "W {:.4}  gp {:.4}  G {:.4}  K {}",
+            stats.wasserstein,
+            stats.penalty,
+            stats.generator_loss,
+            k.join(" ")
         );
         match &bar {
             Some(bar) => {
@@ -1091,16 +1105,7 @@ fn voxelize(args: VoxelizeArgs) -> Result<()> {
             args.padding
         ));
     }
-    if args
-        .out
-        .extension()
-        .is_none_or(|e| !e.eq_ignore_ascii_case("npy"))
-    {
-        return Err(input_error!(
-            "{}: the volume is written as .npy; name the output file.npy",
-            args.out.display()
-        ));
-    }
+    crate::io::VolumeFormat::from_path(&args.out)?;
     crate::io::check_destination(&args.out)?;
     let start = Instant::now();
     let mesh = crate::mesh::read_mesh(&args.mesh)?;
@@ -1205,6 +1210,11 @@ fn synth_slice(
             "--slice writes one plane: --tile, --mirror, --guide and --mesh do not apply"
         ));
     }
+    if args.offset.is_some() {
+        return Err(input_error!(
+            "--slice: the plane is placed by AXIS=INDEX in the volume; --offset does not apply"
+        ));
+    }
     let (axis, index) = slice;
     // The plane's origin in the volume and its box (one voxel thick across `axis`).
     let (origin, [d, h, w], extent) = match axis {
@@ -1253,8 +1263,8 @@ fn synth_slice(
     Ok(())
 }
 
-/// The `Synth` of a 3D model with the flags volumes and slices share: seed, zoom, device and a
-/// density ramp along columns `0..width`.
+/// The `Synth` of a 3D model with the flags volumes and slices share: seed, zoom, noise scale,
+/// device and a density ramp along columns `0..width`.
 fn volume_synth(
     args: &SynthArgs,
     config: GeneratorConfig,
@@ -1264,6 +1274,7 @@ fn volume_synth(
     let mut builder = Synth::new(config, weights)
         .seed(args.seed)
         .zoom(args.zoom)
+        .noise_scale(args.noise_scale)
         .device(args.device.parse()?);
     if let Some((from, to)) = args.density {
         builder = builder.density(crate::synth::DensityRamp { from, to, width });
@@ -1281,8 +1292,15 @@ fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> 
             "--mirror and --guide are for images; volumes do not support them yet"
         ));
     }
+    if args.offset.is_some() || args.bits.is_some() {
+        return Err(input_error!(
+            "--offset and --bits are for images; a volume starts at the origin and is written as float32 (.npy or .raw)"
+        ));
+    }
+    let format = crate::io::VolumeFormat::from_path(&args.out)?;
     crate::io::check_destination(&args.out)?;
     let model = choose_model(args.model.as_deref(), Path::new("."))?;
+    crate::io::check_volume_size(&args.out, depth, height, width, model.config.channels)?;
     let mut builder = volume_synth(args, model.config, model.weights, width)?;
     if args.tile {
         builder = builder.tile_volume(depth, height, width);
@@ -1321,8 +1339,15 @@ fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> 
         }
     }
     if !args.quiet {
+        let layout = match format {
+            crate::io::VolumeFormat::Npy => String::new(),
+            crate::io::VolumeFormat::Raw => format!(
+                ", little-endian float32 [D, H, W, C] = [{depth}, {height}, {width}, {}], no header",
+                painter.channels()
+            ),
+        };
         eprintln!(
-            "model: {}\nwrote {} ({width}x{height}x{depth} voxels, {} channels, seed {}) in {:.2} s",
+            "model: {}\nwrote {} ({width}x{height}x{depth} voxels, {} channels, seed {}{layout}) in {:.2} s",
             model.description,
             args.out.display(),
             painter.channels(),

@@ -291,6 +291,9 @@ pub struct Voxelized {
     pub open_edges: usize,
 }
 
+/// The largest `--res` of [`voxelize`]: the volume is held in memory, 4 GiB of floats at 1024³.
+pub const MAX_VOXELIZE_RES: usize = 1024;
+
 /// Samples the signed distance to `mesh` at the centres of a `res³` grid: a cube around the
 /// mesh's bounding box, widened by `padding` of its side on each side, with mesh x, y, z along
 /// the volume's columns, rows and depth.
@@ -310,6 +313,11 @@ pub fn voxelize(mesh: &Mesh, res: usize, padding: f32) -> Result<Voxelized> {
     if res == 0 {
         return Err(input_error!(
             "--res 0: the volume needs at least 1 voxel per side"
+        ));
+    }
+    if res > MAX_VOXELIZE_RES {
+        return Err(input_error!(
+            "--res {res}: at most {MAX_VOXELIZE_RES} (the whole {res}³ volume is held in memory)"
         ));
     }
     let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);

@@ -73,6 +73,7 @@ impl DeviceChoice {
 
 /// Whether every wgpu adapter on this machine is a software one (lavapipe, WARP): wgpu then
 /// works but runs on the CPU, far slower than `--device cpu`.
+#[cfg(feature = "wgpu")]
 pub fn wgpu_is_software() -> bool {
     use burn::tensor::wgpu::wgpu;
     let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle();
@@ -83,6 +84,12 @@ pub fn wgpu_is_software() -> bool {
         && adapters
             .iter()
             .all(|a| a.get_info().device_type == wgpu::DeviceType::Cpu)
+}
+
+/// A build without the `wgpu` feature has no wgpu adapter, software or not.
+#[cfg(not(feature = "wgpu"))]
+pub fn wgpu_is_software() -> bool {
+    false
 }
 
 /// The CUDA device, probed once per process with a one-element round trip, so a machine without
@@ -138,12 +145,25 @@ pub fn cuda_device() -> Result<Device> {
     ))
 }
 
+/// Without the `wgpu` feature, `--device wgpu` says how to get it.
+#[cfg(not(feature = "wgpu"))]
+pub fn wgpu_device() -> Result<Device> {
+    Err(input_error!(
+        "--device wgpu: this ipfn was built without wgpu; reinstall with `cargo install --path .` (wgpu is a default feature), or use --device cpu"
+    ))
+}
+
 /// The wgpu device, initialised once per process.
+#[cfg(feature = "wgpu")]
 pub fn wgpu_device() -> Result<Device> {
     static DEVICE: std::sync::OnceLock<std::result::Result<Device, String>> =
         std::sync::OnceLock::new();
     DEVICE
-        .get_or_init(|| Device::wgpu_options().init().map_err(|e| e.to_string()))
+        .get_or_init(|| {
+            Device::wgpu_options()
+                .init()
+                .map_err(|e| e.to_string().split_whitespace().collect::<Vec<_>>().join(" "))
+        })
         .clone()
         .map_err(|e| {
             input_error!("--device wgpu: no usable GPU adapter ({e}); install Vulkan drivers (e.g. mesa-vulkan-drivers) or use --device cpu")
@@ -794,6 +814,12 @@ impl Synth {
                 self.zoom
             ));
         }
+        if !(self.noise_scale.is_finite() && self.noise_scale > 0.0) {
+            return Err(input_error!(
+                "--noise-scale {}: must be a positive number",
+                self.noise_scale
+            ));
+        }
         if self.tile.is_some() || self.mirror.is_some() || self.guide.is_some() {
             return Err(input_error!(
                 "--mirror and --guide are for images; volumes do not support them yet"
@@ -816,14 +842,15 @@ impl Synth {
         let mut weights = self.weights;
         let mut field =
             LatentField::hashed(self.seed, 3, self.config.latent_dim).with_sigma(self.config.sigma);
-        let mut latent_scale = vec![self.config.latent_scale; 3];
+        let noise_latent_scale = (self.config.latent_scale as f64 / self.noise_scale) as f32;
+        let mut latent_scale = vec![noise_latent_scale; 3];
         let mut tile = None;
         if let Some(period) = self.tile_volume {
             let adjustment = snap_to_tile(
                 &period,
                 grid.spacing,
                 &mut weights.k,
-                self.config.latent_scale,
+                noise_latent_scale,
                 &mut latent_scale,
             )?;
             field = field.periodic(&adjustment.lattice_period);

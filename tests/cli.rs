@@ -275,6 +275,40 @@ fn bench_prints_ours_beside_a_floor_measured_in_the_same_run() {
         let ratio: f64 = row.split('|').nth(5).unwrap().trim().parse().unwrap();
         assert!(ratio > 0.0, "{row}");
     }
+    // A training iteration and a volume, with their floors (batch 1 and 8³, to stay quick).
+    let out = ipfn(
+        dir.path(),
+        &[
+            "bench",
+            "--sizes",
+            "8",
+            "--runs",
+            "1",
+            "--devices",
+            "flex",
+            "--batches",
+            "1",
+            "--volumes",
+            "8",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let table = String::from_utf8_lossy(&out.stdout);
+    for (work, floor) in [
+        (
+            "train iteration (batch 1, crop 128)",
+            "generator GEMM floor (20 MLP passes",
+        ),
+        ("volume 8³ (3D 10x128 MLP)", "matmul floor"),
+    ] {
+        let row = table
+            .lines()
+            .find(|l| l.starts_with(&format!("| {work} | flex |")))
+            .unwrap_or_else(|| panic!("no {work} row in:\n{table}"));
+        assert!(row.contains(floor), "{row}");
+        let ratio: f64 = row.split('|').nth(5).unwrap().trim().parse().unwrap();
+        assert!(ratio > 0.0, "{row}");
+    }
     assert_error(&ipfn(dir.path(), &["bench", "--sizes", "0"]), &["--sizes"]);
     assert_error(
         &ipfn(dir.path(), &["bench", "--devices", "tpu"]),
@@ -300,4 +334,29 @@ fn device_cuda_without_cuda_is_a_one_line_error() {
         "built without CUDA"
     };
     assert_error(&out, &["--device cuda", needle]);
+}
+
+/// A machine with no GPU driver gets one line that says what to install, not a panic. The
+/// Vulkan loader and glvnd's EGL (wgpu's GL backend) are pointed at driver lists that do not
+/// exist, so no adapter is found.
+#[test]
+fn device_wgpu_without_an_adapter_is_a_one_line_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ipfn"))
+        .args(["synth", "--size", "8", "--device", "wgpu", "--out", "w.png"])
+        .current_dir(dir.path())
+        .env("VK_ICD_FILENAMES", dir.path().join("no-driver.json"))
+        .env("VK_DRIVER_FILES", dir.path().join("no-driver.json"))
+        .env(
+            "__EGL_VENDOR_LIBRARY_FILENAMES",
+            dir.path().join("no-driver.json"),
+        )
+        .env("XDG_RUNTIME_DIR", dir.path())
+        .output()
+        .unwrap();
+    assert_error(
+        &out,
+        &["--device wgpu", "no usable GPU adapter", "--device cpu"],
+    );
+    assert!(!dir.path().join("w.png").exists());
 }

@@ -166,12 +166,45 @@ fn tiled_volumes_repeat_on_every_axis() {
     }
     assert!(worst < 1e-4, "tiled volume wraps with a step of {worst}");
     // Without --tile it does not wrap.
-    let plain = Synth::new(config, weights)
+    let plain = Synth::new(config.clone(), weights.clone())
         .seed(5)
         .volume_painter()
         .unwrap()
         .render([0, 0, 0], dd + 1, 1, 1);
     assert!((plain[dd] - plain[0]).abs() > 1e-4);
+
+    // `ipfn synth --tile` paints that tile and says how far K moved; `--slice` writes one
+    // plane of it as a PNG.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut ckpt = Checkpoint::new();
+    weights.write_to(&config, &mut ckpt);
+    ckpt.save(&d.join("m3.ipfn")).unwrap();
+    let size = format!("{w}x{h}x{dd}");
+    let out = ipfn(
+        d,
+        &[
+            "synth", "--model", "m3.ipfn", "--size", &size, "--seed", "5", "--tile", "-o", "t.npy",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("K snapped"), "{}", stderr(&out));
+    let (shape, values) = read_npy(&d.join("t.npy")).unwrap();
+    assert_eq!(shape, [dd, h, w, 1]);
+    assert_eq!(values, painter.render([0, 0, 0], dd, h, w));
+    let out = ipfn(
+        d,
+        &[
+            "synth", "--model", "m3.ipfn", "--size", &size, "--slice", "y=3", "-o", "y3.png",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let png = image::open(d.join("y3.png")).unwrap();
+    assert_eq!(
+        (png.width(), png.height()),
+        (w as u32, dd as u32),
+        "a D x W plane"
+    );
 }
 
 #[test]
@@ -199,6 +232,48 @@ fn synth_depth_writes_a_volume_and_refuses_mismatches() {
         .unwrap()
         .render([0, 0, 0], 7, 10, 12);
     assert_eq!(values, expected);
+
+    // .raw: the same float32 values, little-endian, with no header.
+    let out = ipfn(
+        d,
+        &[
+            "synth", "--model", "m3.ipfn", "--width", "12", "--height", "10", "--depth", "7",
+            "--seed", "4", "--out", "v.raw",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("little-endian float32 [D, H, W, C] = [7, 10, 12, 1]"));
+    let raw: Vec<u8> = expected.iter().flat_map(|v| v.to_le_bytes()).collect();
+    assert!(
+        std::fs::read(d.join("v.raw")).unwrap() == raw,
+        "v.raw holds the volume"
+    );
+
+    // Without --out a volume goes to synth.npy; --noise-scale applies to volumes too.
+    let out = ipfn(
+        d,
+        &[
+            "synth",
+            "--model",
+            "m3.ipfn",
+            "--size",
+            "6x5x4",
+            "--noise-scale",
+            "2.5",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let (shape, values) = read_npy(&d.join("synth.npy")).unwrap();
+    assert_eq!(shape, [4, 5, 6, 1]);
+    let painter = |noise: f64| {
+        Synth::new(config.clone(), weights.clone())
+            .noise_scale(noise)
+            .volume_painter()
+            .unwrap()
+            .render([0, 0, 0], 4, 5, 6)
+    };
+    assert_eq!(values, painter(2.5));
+    assert_ne!(values, painter(1.0), "--noise-scale changes a volume");
 
     // --mesh: the zero level set, as OBJ or PLY, the same triangles the library extracts.
     let out = ipfn(
@@ -280,6 +355,95 @@ fn synth_depth_writes_a_volume_and_refuses_mismatches() {
             ],
         ),
         &["--depth 0"],
+    );
+    // Flags that do not apply to volumes, and a volume too large to paint, are refused.
+    for (flag, value) in [("--offset", "3,4"), ("--bits", "16")] {
+        assert_error(
+            &ipfn(
+                d,
+                &[
+                    "synth", "--model", "m3.ipfn", "--depth", "4", "-o", "o.npy", flag, value,
+                ],
+            ),
+            &[flag, "images"],
+        );
+    }
+    assert_error(
+        &ipfn(
+            d,
+            &[
+                "synth",
+                "--model",
+                "m3.ipfn",
+                "--size",
+                "100000x100000x2",
+                "-o",
+                "big.npy",
+            ],
+        ),
+        &["big.npy", "too large", "100000x100000"],
+    );
+    assert_error(
+        &ipfn(
+            d,
+            &[
+                "synth",
+                "--model",
+                "m3.ipfn",
+                "--depth",
+                "4",
+                "--noise-scale",
+                "0",
+            ],
+        ),
+        &["--noise-scale 0"],
+    );
+    assert!(!d.join("big.npy").exists() && !d.join("o.npy").exists());
+
+    // Density control: asked of a model trained without it, or left out for one trained with.
+    assert_error(
+        &ipfn(
+            d,
+            &[
+                "synth",
+                "--model",
+                "m3.ipfn",
+                "--depth",
+                "4",
+                "--density",
+                "0.3",
+            ],
+        ),
+        &["--density", "trained without density control"],
+    );
+    let dense = config.clone().with_guidance(1);
+    let mut ckpt = Checkpoint::new();
+    GeneratorWeights::random(&dense).write_to(&dense, &mut ckpt);
+    ckpt.save(&d.join("dense.ipfn")).unwrap();
+    assert_error(
+        &ipfn(d, &["synth", "--model", "dense.ipfn", "--depth", "4"]),
+        &["trained with --density", "--density D"],
+    );
+    let out = ipfn(
+        d,
+        &[
+            "synth",
+            "--model",
+            "dense.ipfn",
+            "--size",
+            "6x5x4",
+            "--density",
+            "0.2,0.4",
+            "-o",
+            "ramp.npy",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    // An image exemplar cannot be trained with --density.
+    ipfn::io::write_png(&d.join("ex.png"), 8, 8, 3, &[0.0; 8 * 8 * 3]).unwrap();
+    assert_error(
+        &ipfn(d, &["train", "ex.png", "--density"]),
+        &["--density is for volumes"],
     );
 }
 

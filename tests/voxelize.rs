@@ -113,6 +113,11 @@ fn an_open_mesh_is_voxelized_with_a_warning() {
     let centre = (8 * 16 + 8) * 16 + 8;
     assert!(values[centre] < 0.0, "the centre is still inside");
     assert!(values[0] > 0.0, "a corner is outside");
+    // The same volume as bare little-endian float32.
+    let o = ipfn(d, &["voxelize", "open.obj", "--res", "16", "-o", "v.raw"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let raw: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+    assert!(std::fs::read(d.join("v.raw")).unwrap() == raw);
 }
 
 #[test]
@@ -137,6 +142,10 @@ fn bad_voxelize_input_is_one_line() {
     assert_error(
         &ipfn(d, &["voxelize", "s.obj", "--res", "0", "-o", "v.npy"]),
         &["--res 0"],
+    );
+    assert_error(
+        &ipfn(d, &["voxelize", "s.obj", "--res", "5000", "-o", "v.npy"]),
+        &["s.obj", "--res 5000", "at most 1024"],
     );
     assert_error(
         &ipfn(d, &["voxelize", "s.obj", "-o", "v.png"]),

@@ -26,6 +26,10 @@ pub mod kernel {
             None
         }
 
+        pub fn with_launch_points(self, _: usize) -> Self {
+            match self {}
+        }
+
         pub fn render(
             &self,
             _: &LatentField,
@@ -33,6 +37,10 @@ pub mod kernel {
             _: &[Vec<f32>],
             _: impl FnMut(usize, usize) -> Vec<f32>,
         ) -> Vec<f32> {
+            match *self {}
+        }
+
+        pub fn largest_device_allocation(&self) -> u64 {
             match *self {}
         }
     }

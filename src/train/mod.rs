@@ -342,14 +342,15 @@ fn initialise<M: Module>(module: M, seed: u64, stream: u64) -> M {
 }
 
 /// Losses of one iteration (from its last critic and generator steps).
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Default)]
 pub struct IterationStats {
     pub iteration: u64,
     /// Critic's Wasserstein estimate: mean D(real) - mean D(fake).
     pub wasserstein: f32,
     pub penalty: f32,
     pub generator_loss: f32,
-    pub k: [f32; 2],
+    /// The learned period K per axis, in axis order (rows, columns; depth first for volumes).
+    pub k: Vec<f32>,
     pub iterations_per_second: f32,
     /// Where the iteration's time went.
     pub times: StepTimes,
@@ -1263,13 +1264,12 @@ impl Trainer {
             times.generator_update += t.elapsed().as_secs_f64();
         }
         self.iteration += 1;
-        let k = self
+        stats.k = self
             .generator
             .k
             .val()
             .try_into_vec_as::<f32>()
             .expect("K readable");
-        stats.k = [k[0], k[1]];
         stats.iterations_per_second = 1.0 / start.elapsed().as_secs_f32();
         stats
     }
@@ -1372,7 +1372,7 @@ impl Trainer {
             self.config.to_toml().as_bytes(),
         )?;
         let metrics = self.run_dir.join("metrics.csv");
-        let mut kept = String::from(METRICS_HEADER);
+        let mut kept = metrics_header(self.config.dims());
         if let Ok(old) = std::fs::read_to_string(&metrics) {
             for line in old.lines().skip(1) {
                 let it: u64 = line
@@ -1396,21 +1396,27 @@ impl Trainer {
             .append(true)
             .open(&path)
             .map_err(|e| Error::Runtime(format!("{}: {e}", path.display())))?;
+        let k: Vec<String> = s.k.iter().map(f32::to_string).collect();
         writeln!(
             file,
-            "{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{}",
             s.iteration,
             s.wasserstein,
             s.penalty,
             s.generator_loss,
-            s.k[0],
-            s.k[1],
+            k.join(","),
             s.iterations_per_second
         )
         .map_err(|e| Error::Runtime(format!("{}: {e}", path.display())))
     }
 }
 
-/// Header of `metrics.csv`.
-pub const METRICS_HEADER: &str =
-    "iteration,wasserstein,penalty,generator_loss,k_rows,k_cols,iterations_per_second\n";
+/// Header of `metrics.csv` for a run over `dims` axes: one K column per axis.
+pub fn metrics_header(dims: usize) -> String {
+    let k = if dims == 3 {
+        "k_depth,k_rows,k_cols"
+    } else {
+        "k_rows,k_cols"
+    };
+    format!("iteration,wasserstein,penalty,generator_loss,{k},iterations_per_second\n")
+}
