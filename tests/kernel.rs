@@ -2,6 +2,7 @@
 //! fused CPU evaluator and burn's generator paint, on wgpu (lavapipe in CI): for the authors'
 //! honeycomb model and for small 3D guided models whose widths are not multiples of 16, across
 //! launch boundaries.
+#![cfg(feature = "wgpu")]
 
 mod common;
 

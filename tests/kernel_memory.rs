@@ -1,6 +1,7 @@
 //! The generator kernel's device memory is bounded by one launch, not by the size of what it
 //! paints (issue 6: "peak memory under 512 MiB at any size"). A test binary of its own, so no
 //! other test allocates on the device while this one reads the device's memory report.
+#![cfg(feature = "wgpu")]
 
 mod common;
 

@@ -33,6 +33,10 @@ macro_rules! test_device {
 }
 
 pub fn skip_wgpu() -> bool {
+    if !cfg!(feature = "wgpu") {
+        eprintln!("built without the wgpu feature: wgpu variant skipped");
+        return true;
+    }
     if std::env::var_os("IPFN_SKIP_WGPU").is_some_and(|v| v == "1") {
         eprintln!("IPFN_SKIP_WGPU=1: wgpu variant skipped");
         return true;
