@@ -371,6 +371,9 @@ pub struct StepTimes {
     pub generator_update: f64,
 }
 
+/// Points per generator evaluation when training on flex (see [`Trainer::fake_values`]).
+pub const FLEX_TRAIN_CHUNK: usize = 4096;
+
 /// A training run: networks, optimisers, exemplar and run folder.
 pub struct Trainer {
     pub config: TrainConfig,
@@ -1045,7 +1048,16 @@ impl Trainer {
         }
         let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, dims]), device);
         let z = Tensor::<2>::from_data(TensorData::new(latent, [b * n, zw]), device);
-        (generator.forward(p, z), guides) // [b * n, c]
+        // The MLP in chunks of FLEX_TRAIN_CHUNK points, so each layer's activations (and, in
+        // the backward pass, their gradients) stay in cache; the weight gradients sum over
+        // the chunks.
+        let values: Vec<Tensor<2>> = p
+            .split(FLEX_TRAIN_CHUNK, 0)
+            .into_iter()
+            .zip(z.split(FLEX_TRAIN_CHUNK, 0))
+            .map(|(p, z)| generator.forward(p, z)) // [chunk, c]
+            .collect();
+        (Tensor::cat(values, 0), guides) // [b * n, c]
     }
 
     /// [`Trainer::fake_values`] on a GPU: the same crops and fields, with the latent blend
