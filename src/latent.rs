@@ -499,6 +499,48 @@ mod tests {
         }
     }
 
+    /// In 3D the blend runs over the cell's 8 corners with weights softmax(-distance / sigma),
+    /// checked against the formula written out from the corner positions, in f64.
+    #[test]
+    fn blend_3d_is_the_softmax_over_the_cells_8_corners() {
+        let sigma = 0.3;
+        let f = LatentField::hashed(11, 3, 4).with_sigma(sigma);
+        for u in [[0.25f32, -1.6, 7.9], [-3.5, 0.01, 2.5], [10.0, 10.5, -0.75]] {
+            let mut ours = [0f32; 4];
+            f.at(&u, &mut ours);
+            let base: Vec<i64> = u.iter().map(|v| v.floor() as i64).collect();
+            let mut expected = [0f64; 4];
+            let mut total = 0f64;
+            let mut vector = [0f32; 4];
+            for corner in 0..8 {
+                let c: Vec<i64> = (0..3).map(|d| base[d] + (corner >> d & 1) as i64).collect();
+                let distance = (0..3)
+                    .map(|d| (u[d] as f64 - c[d] as f64).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                let w = (-distance / sigma as f64).exp();
+                total += w;
+                f.lattice_vector(&c, &mut vector);
+                for (e, v) in expected.iter_mut().zip(vector) {
+                    *e += w * v as f64;
+                }
+            }
+            for (o, e) in ours.iter().zip(expected) {
+                assert!(
+                    (*o as f64 - e / total).abs() < 1e-5,
+                    "{u:?}: {o} vs {}",
+                    e / total
+                );
+            }
+        }
+        // A periodic 3D field repeats on every axis.
+        let p = LatentField::hashed(11, 3, 4).periodic(&[3, 4, 5]);
+        let (mut a, mut b) = ([0f32; 4], [0f32; 4]);
+        p.at(&[0.375, 1.75, -2.25], &mut a);
+        p.at(&[3.375, -2.25, 7.75], &mut b);
+        assert_eq!(a, b);
+    }
+
     #[test]
     fn grid_source_clamps_like_the_authors() {
         // 1 channel, 4x4 grid holding its own flat index.
