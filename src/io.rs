@@ -147,13 +147,17 @@ pub enum OutputFormat {
     Npy,
 }
 
+/// `path`'s extension in lower case (empty when it has none): what picks a file's format.
+pub fn extension(path: &Path) -> String {
+    path.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default()
+}
+
 impl OutputFormat {
     /// The format for `path`'s extension; `bits` applies to PNG only (8 or 16).
     pub fn from_path(path: &Path, bits: u8) -> Result<Self> {
-        let ext = path
-            .extension()
-            .map(|e| e.to_string_lossy().to_ascii_lowercase())
-            .unwrap_or_default();
+        let ext = extension(path);
         let format = match ext.as_str() {
             "png" => OutputFormat::Png { bits },
             "exr" => OutputFormat::Exr,
@@ -527,10 +531,7 @@ pub fn read_exemplar_with_bits(path: &Path) -> Result<(Exemplar, u8)> {
     if !path.exists() {
         return Err(input_error!("{}: no such file", path.display()));
     }
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
+    let ext = extension(path);
     if ext == "exr" {
         return read_exr_exemplar(path).map(|e| (e, 32));
     }
@@ -692,10 +693,7 @@ pub enum VolumeFormat {
 
 impl VolumeFormat {
     pub fn from_path(path: &Path) -> Result<Self> {
-        let ext = path
-            .extension()
-            .map(|e| e.to_string_lossy().to_ascii_lowercase())
-            .unwrap_or_default();
+        let ext = extension(path);
         match ext.as_str() {
             "npy" => Ok(Self::Npy),
             "raw" => Ok(Self::Raw),

@@ -140,10 +140,7 @@ pub enum MeshFormat {
 
 impl MeshFormat {
     pub fn from_path(path: &Path) -> Result<Self> {
-        let ext = path
-            .extension()
-            .map(|e| e.to_string_lossy().to_ascii_lowercase())
-            .unwrap_or_default();
+        let ext = crate::io::extension(path);
         match ext.as_str() {
             "obj" => Ok(Self::Obj),
             "ply" => Ok(Self::Ply),

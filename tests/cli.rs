@@ -264,17 +264,19 @@ fn bench_prints_ours_beside_a_floor_measured_in_the_same_run() {
         ],
     );
     assert!(out.status.success(), "{}", stderr(&out));
-    let table = String::from_utf8_lossy(&out.stdout);
-    for (device, floor) in [("cpu", "GEMM floor"), ("flex", "matmul floor")] {
+    // The row `| work | device | ours | floor | ratio |` names `floor`, with a positive ratio.
+    let has_floor = |table: &str, work: &str, device: &str, floor: &str| {
         let row = table
             .lines()
-            .find(|l| l.starts_with(&format!("| synth 32² | {device} |")))
-            .unwrap_or_else(|| panic!("no {device} row in:\n{table}"));
+            .find(|l| l.starts_with(&format!("| {work} | {device} |")))
+            .unwrap_or_else(|| panic!("no {work} row for {device} in:\n{table}"));
         assert!(row.contains(floor), "{row}");
-        // | work | device | ours | floor | ratio |: the ratio is a positive number.
         let ratio: f64 = row.split('|').nth(5).unwrap().trim().parse().unwrap();
         assert!(ratio > 0.0, "{row}");
-    }
+    };
+    let table = String::from_utf8_lossy(&out.stdout);
+    has_floor(&table, "synth 32²", "cpu", "GEMM floor");
+    has_floor(&table, "synth 32²", "flex", "matmul floor");
     // A training iteration and a volume, with their floors (batch 1 and 8³, to stay quick).
     let out = ipfn(
         dir.path(),
@@ -294,21 +296,13 @@ fn bench_prints_ours_beside_a_floor_measured_in_the_same_run() {
     );
     assert!(out.status.success(), "{}", stderr(&out));
     let table = String::from_utf8_lossy(&out.stdout);
-    for (work, floor) in [
-        (
-            "train iteration (batch 1, crop 128)",
-            "generator GEMM floor (20 MLP passes",
-        ),
-        ("volume 8³ (3D 10x128 MLP)", "matmul floor"),
-    ] {
-        let row = table
-            .lines()
-            .find(|l| l.starts_with(&format!("| {work} | flex |")))
-            .unwrap_or_else(|| panic!("no {work} row in:\n{table}"));
-        assert!(row.contains(floor), "{row}");
-        let ratio: f64 = row.split('|').nth(5).unwrap().trim().parse().unwrap();
-        assert!(ratio > 0.0, "{row}");
-    }
+    has_floor(
+        &table,
+        "train iteration (batch 1, crop 128)",
+        "flex",
+        "generator GEMM floor (20 MLP passes",
+    );
+    has_floor(&table, "volume 8³ (3D 10x128 MLP)", "flex", "matmul floor");
     assert_error(&ipfn(dir.path(), &["bench", "--sizes", "0"]), &["--sizes"]);
     assert_error(
         &ipfn(dir.path(), &["bench", "--devices", "tpu"]),

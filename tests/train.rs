@@ -376,14 +376,7 @@ fn trains_on_wgpu() {
     assert!(out.status.success(), "{}", stderr(&out));
     let latest = Checkpoint::load(&d.join("runs/gpu/latest.ipfn")).unwrap();
     assert_eq!(latest.metadata["iteration"], "2");
-    let metrics = std::fs::read_to_string(d.join("runs/gpu/metrics.csv")).unwrap();
-    let last: Vec<f32> = metrics
-        .lines()
-        .last()
-        .unwrap()
-        .split(',')
-        .map(|v| v.parse().unwrap())
-        .collect();
+    let last = common::last_metrics_row(&d.join("runs/gpu"));
     assert!(
         last.iter().all(|v| v.is_finite()),
         "finite losses on wgpu: {last:?}"

@@ -325,15 +325,8 @@ fn volume_training_runs_on_wgpu() {
     );
     let latest = Checkpoint::load(&d.join("gpu/latest.ipfn")).unwrap();
     assert_eq!(latest.metadata["iteration"], "2");
-    let metrics = std::fs::read_to_string(d.join("gpu/metrics.csv")).unwrap();
-    let last: Vec<f32> = metrics
-        .lines()
-        .last()
-        .unwrap()
-        .split(',')
-        .map(|v| v.parse().unwrap())
-        .collect();
-    assert_eq!(last.len(), 8, "iteration, 3 losses, 3 K, speed: {metrics}");
+    let last = common::last_metrics_row(&d.join("gpu"));
+    assert_eq!(last.len(), 8, "iteration, 3 losses, 3 K, speed: {last:?}");
     assert!(
         last.iter().all(|v| v.is_finite()),
         "finite losses on wgpu: {last:?}"

@@ -438,7 +438,7 @@ impl From<&PathBuf> for ExemplarSource {
 impl From<PathBuf> for ExemplarSource {
     /// A `.npy` file is a volume; anything else an image.
     fn from(p: PathBuf) -> Self {
-        let npy = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+        let npy = crate::io::extension(&p) == "npy";
         if npy { Self::Volume(p) } else { Self::Image(p) }
     }
 }
@@ -1063,7 +1063,7 @@ impl Trainer {
     /// [`Trainer::fake_values`] on a GPU: the same crops and fields, with the latent blend
     /// evaluated on the device from each sample's few lattice vectors ([`DeviceLattice`])
     /// instead of `latent_dim` floats per point sent from the host. (On flex the host blend
-    /// is kept: it is as fast there, and keeps CPU training bit for bit as it was.)
+    /// is kept: it is as fast there, and gives the latent values the fused CPU evaluator gives.)
     ///
     /// # Shapes
     /// - output: `[batch * points, channels]` on `device`, and `[batch * points]`

@@ -119,3 +119,15 @@ checkpoint_every = 100
 preview_every = 100
 log_every = 100
 "#;
+
+/// The last row of a run's `metrics.csv`, as numbers.
+pub fn last_metrics_row(run: &Path) -> Vec<f32> {
+    let metrics = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
+    metrics
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect()
+}
