@@ -19,9 +19,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use burn::prelude::*;
+use ipfn::device::DeviceChoice;
 use ipfn::generator::{GeneratorConfig, GeneratorWeights};
 use ipfn::metrics::{self, ModelReport};
-use ipfn::synth::DeviceChoice;
 use ipfn::train::{TrainConfig, Trainer};
 
 /// One budget of `benches/baselines.toml`.
@@ -53,7 +53,7 @@ fn root() -> PathBuf {
 fn evaluate(
     config: &GeneratorConfig,
     weights: &GeneratorWeights,
-    exemplar: &ipfn::io::Exemplar,
+    exemplar: &ipfn::exemplar::Exemplar,
     samples: usize,
     first_seed: u64,
 ) -> ModelReport {
@@ -91,7 +91,7 @@ fn main() {
     config.iterations = base.iterations;
     config.seed = base.seed;
     let exemplar_path = root().join(&base.exemplar);
-    let exemplar = ipfn::io::read_exemplar(&exemplar_path).expect("exemplar");
+    let exemplar = ipfn::exemplar::read_exemplar(&exemplar_path).expect("exemplar");
 
     println!(
         "SIFID regression, budget '{budget}': {} on {}, {} iterations, seed {}, {} samples at {}x{}",
@@ -130,7 +130,7 @@ fn main() {
     ];
     if base.exemplar.ends_with("honeycomb.png") {
         let shipped = ipfn::checkpoint::Checkpoint::from_bytes(
-            ipfn::cli::SHIPPED_HONEYCOMB,
+            ipfn::model::SHIPPED_HONEYCOMB,
             Path::new("<shipped honeycomb>"),
         )
         .expect("shipped model");

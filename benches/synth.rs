@@ -15,8 +15,9 @@
 
 use ipfn::bench::{gemm_floor, matmul_floor, time};
 use ipfn::checkpoint::Checkpoint;
+use ipfn::device::DeviceChoice;
 use ipfn::generator::GeneratorWeights;
-use ipfn::synth::{DeviceChoice, Synth};
+use ipfn::synth::Synth;
 
 const AUTHORS_1024_S: f64 = ipfn::bench::AUTHORS_SYNTH_1024_S;
 
@@ -30,7 +31,7 @@ fn main() {
         .map(|v| v.split(',').filter_map(|s| s.trim().parse().ok()).collect())
         .unwrap_or_else(|| vec![256, 512, 1024]);
     let shipped = Checkpoint::from_bytes(
-        ipfn::cli::SHIPPED_HONEYCOMB,
+        ipfn::model::SHIPPED_HONEYCOMB,
         std::path::Path::new("shipped"),
     )
     .unwrap();
@@ -56,7 +57,7 @@ fn main() {
         let points = n * n;
         let gflop = flop_per_point * points as f64 / 1e9;
         let ours = time(runs, || {
-            std::hint::black_box(painter.render(0, 0, n, n));
+            std::hint::black_box(painter.render(&[0, 0], &[n, n]));
         });
         let burn = time(runs, || {
             matmul_floor(&shapes, points, 4096, &burn::prelude::Device::flex())
@@ -101,7 +102,7 @@ fn main() {
             .painter()
             .unwrap();
         let t = time(runs, || {
-            std::hint::black_box(painter.render(0, 0, n, n));
+            std::hint::black_box(painter.render(&[0, 0], &[n, n]));
         });
         (t, macs)
     };

@@ -29,7 +29,7 @@ fn main() {
     let flop_per_point = 2.0 * config.macs_per_point() as f64;
     let painter = Synth::new(config.clone(), GeneratorWeights::random(&config))
         .seed(1)
-        .volume_painter()
+        .painter()
         .unwrap();
     println!(
         "volume synth on CPU ({} threads), 3D generator 10x128 (input {}), median of {runs} runs",
@@ -48,7 +48,7 @@ fn main() {
             let mut z = 0;
             while z < n {
                 let d = slab.min(n - z);
-                std::hint::black_box(painter.render([z as i64, 0, 0], d, n, n));
+                std::hint::black_box(painter.render(&[z as i64, 0, 0], &[d, n, n]));
                 z += d;
             }
         });

@@ -6,16 +6,18 @@
 use std::path::Path;
 
 use ipfn::checkpoint::Checkpoint;
+use ipfn::device::DeviceChoice;
 use ipfn::generator::GeneratorWeights;
 use ipfn::io::OutputFormat;
-use ipfn::synth::{DEFAULT_BAND_PIXELS, DeviceChoice, Synth};
+use ipfn::synth::{DEFAULT_BAND_PIXELS, Synth};
 
 fn main() -> ipfn::Result<()> {
-    let model = Checkpoint::from_bytes(ipfn::cli::SHIPPED_HONEYCOMB, Path::new("honeycomb.ipfn"))?;
+    let model =
+        Checkpoint::from_bytes(ipfn::model::SHIPPED_HONEYCOMB, Path::new("honeycomb.ipfn"))?;
     let (config, weights) = GeneratorWeights::read_from(&model)?;
     let painter = Synth::new(config, weights)
         .seed(7) // --seed 7
-        .tile(512, 512) // --tile (at the output size)
+        .tile(&[512, 512]) // --tile (at the output size)
         .device(DeviceChoice::Cpu) // --device cpu
         .painter()?;
     if let Some(adjustment) = painter.tile_adjustment() {
@@ -25,8 +27,7 @@ fn main() -> ipfn::Result<()> {
     painter.write_image(
         out,
         OutputFormat::Png { bits: 8 },
-        512,
-        512,
+        [512, 512],
         DEFAULT_BAND_PIXELS,
         |_| {},
     )?;

@@ -4,6 +4,7 @@
 //! it for 100 iterations (about 1.5 minutes on 2 cores) in `runs/02_train/`, and paints a sample.
 
 use std::path::Path;
+use std::sync::atomic::AtomicBool;
 
 use burn::prelude::Device;
 use ipfn::synth::Synth;
@@ -30,24 +31,20 @@ fn main() -> ipfn::Result<()> {
         Path::new("runs/02_train"),
         &Device::flex(),
     )?;
-    trainer.prepare_run_dir()?;
-    while trainer.iteration < trainer.config.iterations {
-        let stats = trainer.step();
-        trainer.append_metrics(&stats)?;
-        if trainer.iteration % 25 == 0 {
-            println!(
-                "iteration {}: Wasserstein estimate {:.3}, K {:?}",
-                stats.iteration, stats.wasserstein, stats.k
-            );
+    // Prepares the run folder, appends metrics.csv, and saves checkpoints and previews on
+    // schedule (and at the last iteration); raising `stop` ends the run after a checkpoint.
+    let stop = AtomicBool::new(false);
+    trainer.run(&stop, |_, stats| {
+        if stats.iteration % 25 == 0 {
+            println!("iteration {}: {}", stats.iteration, stats.summary());
         }
-    }
-    trainer.save_checkpoint()?;
+    })?;
 
     let (config, weights) = trainer.model();
     let sample = Synth::new(config, weights)
         .seed(1)
         .painter()?
-        .render(0, 0, 256, 256);
+        .render(&[0, 0], &[256, 256]);
     ipfn::io::write_png(Path::new("02_train.png"), 256, 256, 3, &sample)?;
     println!("wrote runs/02_train/latest.ipfn and 02_train.png");
     Ok(())

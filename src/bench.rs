@@ -24,11 +24,12 @@ use burn::prelude::*;
 use burn::tensor::activation::relu;
 use rayon::prelude::*;
 
-use crate::checkpoint::Checkpoint;
+use crate::device::DeviceChoice;
 use crate::error::Result;
 use crate::generator::fused::matmul_into;
 use crate::generator::{GeneratorConfig, GeneratorWeights};
-use crate::synth::{DeviceChoice, Synth};
+pub use crate::model::shipped_model;
+use crate::synth::Synth;
 use crate::train::{TrainConfig, Trainer};
 
 /// The authors' PyTorch code on the 2-core reference machine (DESIGN.md): synth 1024².
@@ -116,15 +117,6 @@ fn floor(
     }
 }
 
-/// The shipped honeycomb generator (the authors' architecture: 10 hidden layers of 128).
-pub fn shipped_model() -> Result<(GeneratorConfig, GeneratorWeights)> {
-    let shipped = Checkpoint::from_bytes(
-        crate::cli::SHIPPED_HONEYCOMB,
-        std::path::Path::new("<shipped honeycomb>"),
-    )?;
-    GeneratorWeights::read_from(&shipped)
-}
-
 /// One row of the table.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Row {
@@ -190,13 +182,25 @@ fn is_gpu(device: DeviceChoice) -> bool {
 
 /// Runs the plan, calling `row` as each row is measured.
 pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
-    let (config, weights) = shipped_model()?;
-    let shapes = config.layer_shapes();
     let mut rows = Vec::new();
     let mut emit = |r: Row| {
         row(&r);
         rows.push(r);
     };
+    synth_rows(plan, &mut emit)?;
+    if !plan.volumes.is_empty() {
+        volume_rows(plan, &mut emit)?;
+    }
+    if plan.train {
+        train_rows(plan, &mut emit)?;
+    }
+    Ok(rows)
+}
+
+/// Images of `plan.sizes` with the shipped model on every device and engine.
+fn synth_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
+    let (config, weights) = shipped_model()?;
+    let shapes = config.layer_shapes();
     for &device in &plan.devices {
         let burn_device = device.burn_device()?;
         for kernel in engines(device) {
@@ -208,7 +212,7 @@ pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
             let name = engine_name(device, painter.engine());
             for &n in &plan.sizes {
                 let ours = time(plan.runs, || {
-                    std::hint::black_box(painter.render(0, 0, n, n));
+                    std::hint::black_box(painter.render(&[0, 0], &[n, n]));
                 });
                 let (floor, floor_s) =
                     floor(device, burn_device.as_ref(), &shapes, n * n, plan.runs);
@@ -242,136 +246,143 @@ pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
             }
         }
     }
-    if !plan.volumes.is_empty() {
-        let config = GeneratorConfig::new()
-            .with_dims(3)
-            .with_channels(1)
-            .with_crop(64);
-        let weights = GeneratorWeights::random(&config);
-        let shapes = config.layer_shapes();
-        for (device, kernel) in plan
-            .devices
-            .iter()
-            .flat_map(|&d| engines(d).into_iter().map(move |k| (d, k)))
-        {
-            let painter = Synth::new(config.clone(), weights.clone())
-                .seed(1)
-                .device(device)
-                .gpu_kernel(kernel)
-                .volume_painter()?;
-            let name = engine_name(device, painter.engine());
-            let burn_device = device.burn_device()?;
-            for &n in &plan.volumes {
-                // Slabs of about a million voxels, as `ipfn synth --depth` renders them.
-                let slab = (crate::synth::DEFAULT_BAND_PIXELS).div_ceil(n * n).max(1);
-                let ours = time(plan.runs.min(2), || {
-                    let mut z = 0;
-                    while z < n {
-                        let d = slab.min(n - z);
-                        std::hint::black_box(painter.render([z as i64, 0, 0], d, n, n));
-                        z += d;
-                    }
-                });
-                let voxels = n * n * n;
-                let (floor, floor_s) = floor(
-                    device,
-                    burn_device.as_ref(),
-                    &shapes,
-                    voxels,
-                    plan.runs.min(2),
-                );
-                emit(Row {
-                    work: format!("volume {n}³ (3D 10x128 MLP)"),
-                    device: name.clone(),
-                    ours_s: ours,
-                    floor,
-                    floor_s: Some(floor_s),
-                });
-                if n == 512 {
-                    emit(Row {
-                        work: "volume 512³".into(),
-                        device: "paper (GPU, reported)".into(),
-                        ours_s: PAPER_VOLUME_512_S,
-                        floor: format!("ours is {:.2}x its time", ours / PAPER_VOLUME_512_S),
-                        floor_s: None,
-                    });
+    Ok(())
+}
+
+/// Cubes of `plan.volumes` with a 3D generator of the paper's size (random weights).
+fn volume_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
+    let config = GeneratorConfig::new()
+        .with_dims(3)
+        .with_channels(1)
+        .with_crop(64);
+    let weights = GeneratorWeights::random(&config);
+    let shapes = config.layer_shapes();
+    for (device, kernel) in plan
+        .devices
+        .iter()
+        .flat_map(|&d| engines(d).into_iter().map(move |k| (d, k)))
+    {
+        let painter = Synth::new(config.clone(), weights.clone())
+            .seed(1)
+            .device(device)
+            .gpu_kernel(kernel)
+            .painter()?;
+        let name = engine_name(device, painter.engine());
+        let burn_device = device.burn_device()?;
+        for &n in &plan.volumes {
+            // Slabs of about a million voxels, as `ipfn synth --depth` renders them.
+            let slab = (crate::synth::DEFAULT_BAND_PIXELS).div_ceil(n * n).max(1);
+            let ours = time(plan.runs.min(2), || {
+                let mut z = 0;
+                while z < n {
+                    let d = slab.min(n - z);
+                    std::hint::black_box(painter.render(&[z as i64, 0, 0], &[d, n, n]));
+                    z += d;
                 }
+            });
+            let voxels = n * n * n;
+            let (floor, floor_s) = floor(
+                device,
+                burn_device.as_ref(),
+                &shapes,
+                voxels,
+                plan.runs.min(2),
+            );
+            emit(Row {
+                work: format!("volume {n}³ (3D 10x128 MLP)"),
+                device: name.clone(),
+                ours_s: ours,
+                floor,
+                floor_s: Some(floor_s),
+            });
+            if n == 512 {
+                emit(Row {
+                    work: "volume 512³".into(),
+                    device: "paper (GPU, reported)".into(),
+                    ours_s: PAPER_VOLUME_512_S,
+                    floor: format!("ours is {:.2}x its time", ours / PAPER_VOLUME_512_S),
+                    floor_s: None,
+                });
             }
         }
     }
-    if plan.train {
-        let exemplar = tempfile::Builder::new()
-            .suffix(".png")
-            .tempfile()
-            .map_err(|e| crate::Error::Runtime(format!("temp file: {e}")))?;
-        // A 256x256 RGB exemplar (the speed does not depend on what it shows).
-        let bricks: Vec<f32> = crate::procedural::bricks(256, 256, 32, 16)
-            .iter()
-            .map(|v| v * 2.0 - 1.0)
-            .collect();
-        crate::io::write_png(exemplar.path(), 256, 256, 3, &bricks)?;
-        for &device in &plan.devices {
-            let Some(burn_device) = device.burn_device()? else {
-                continue; // the fused CPU evaluator has no backward; flex trains on the CPU
+    Ok(())
+}
+
+/// One training iteration per batch size on every device that trains.
+fn train_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
+    let exemplar = tempfile::Builder::new()
+        .suffix(".png")
+        .tempfile()
+        .map_err(|e| crate::Error::Runtime(format!("temp file: {e}")))?;
+    // A 256x256 RGB exemplar (the speed does not depend on what it shows).
+    let bricks: Vec<f32> = crate::procedural::bricks(256, 256, 32, 16)
+        .iter()
+        .map(|v| v * 2.0 - 1.0)
+        .collect();
+    crate::io::write_png(exemplar.path(), 256, 256, 3, &bricks)?;
+    for &device in &plan.devices {
+        let Some(burn_device) = device.burn_device()? else {
+            continue; // the fused CPU evaluator has no backward; flex trains on the CPU
+        };
+        for &batch in &plan.batches {
+            let run_dir =
+                tempfile::tempdir().map_err(|e| crate::Error::Runtime(format!("temp dir: {e}")))?;
+            let config = TrainConfig {
+                batch,
+                crop: 128,
+                ..TrainConfig::default()
             };
-            for &batch in &plan.batches {
-                let run_dir = tempfile::tempdir()
-                    .map_err(|e| crate::Error::Runtime(format!("temp dir: {e}")))?;
-                let config = TrainConfig {
-                    batch,
-                    crop: 128,
-                    ..TrainConfig::default()
-                };
-                let mut trainer = Trainer::new(
-                    config.clone(),
-                    exemplar.path(),
-                    run_dir.path(),
-                    &burn_device,
-                )?;
-                let ours = time(plan.runs.min(2), || {
-                    trainer.step();
-                });
-                // The generator's share of the iteration's FLOPs: one forward pass per critic
-                // step, and per generator step a forward and a backward (input and weight
-                // gradients, two more passes' worth). The critic's convolutions are not in it.
-                let passes = config.critic_steps + 3 * config.generator_steps;
-                let points = passes * batch * config.crop * config.crop;
-                let gpu_device = is_gpu(device).then_some(&burn_device);
-                let shapes = config.generator_config(3).layer_shapes();
-                let (floor_name, floor_s) =
-                    floor(device, gpu_device, &shapes, points, plan.runs.min(2));
-                let work = format!("train iteration (batch {batch}, crop 128)");
+            let mut trainer = Trainer::new(
+                config.clone(),
+                exemplar.path(),
+                run_dir.path(),
+                &burn_device,
+            )?;
+            let ours = time(plan.runs.min(2), || {
+                trainer.step();
+            });
+            // The generator's share of the iteration's FLOPs: one forward pass per critic
+            // step, and per generator step a forward and a backward (input and weight
+            // gradients, two more passes' worth). The critic's convolutions are not in it.
+            let passes = config.critic_steps + 3 * config.generator_steps;
+            let points = passes * batch * config.crop * config.crop;
+            let gpu_device = is_gpu(device).then_some(&burn_device);
+            let kind = config.run_kind()?;
+            let shapes = config.generator_config(&kind, 3).layer_shapes();
+            let (floor_name, floor_s) =
+                floor(device, gpu_device, &shapes, points, plan.runs.min(2));
+            let work = format!("train iteration (batch {batch}, crop 128)");
+            emit(Row {
+                work: work.clone(),
+                device: device_name(device),
+                ours_s: ours,
+                floor: format!("generator {floor_name} ({passes} MLP passes, no critic)"),
+                floor_s: Some(floor_s),
+            });
+            let reference = if is_gpu(device) {
+                AUTHORS_H100_ITERATION_S
+                    .iter()
+                    .find(|(b, _)| *b == batch)
+                    .map(|&(_, t)| ("authors' PyTorch on one H100 (issue 6, not re-run)", t))
+            } else {
+                (batch == 4).then_some((
+                    "authors' PyTorch (reference machine, not re-run)",
+                    AUTHORS_ITERATION_S,
+                ))
+            };
+            if let Some((who, t)) = reference {
                 emit(Row {
-                    work: work.clone(),
-                    device: device_name(device),
-                    ours_s: ours,
-                    floor: format!("generator {floor_name} ({passes} MLP passes, no critic)"),
-                    floor_s: Some(floor_s),
+                    work,
+                    device: who.into(),
+                    ours_s: t,
+                    floor: format!("{:.1}x ours", t / ours),
+                    floor_s: None,
                 });
-                let reference = if is_gpu(device) {
-                    AUTHORS_H100_ITERATION_S
-                        .iter()
-                        .find(|(b, _)| *b == batch)
-                        .map(|&(_, t)| ("authors' PyTorch on one H100 (issue 6, not re-run)", t))
-                } else {
-                    (batch == 4).then_some((
-                        "authors' PyTorch (reference machine, not re-run)",
-                        AUTHORS_ITERATION_S,
-                    ))
-                };
-                if let Some((who, t)) = reference {
-                    emit(Row {
-                        work,
-                        device: who.into(),
-                        ours_s: t,
-                        floor: format!("{:.1}x ours", t / ours),
-                        floor_s: None,
-                    });
-                }
             }
         }
     }
-    Ok(rows)
+    Ok(())
 }
 
 pub fn device_name(device: DeviceChoice) -> String {

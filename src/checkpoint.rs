@@ -50,7 +50,8 @@ impl Checkpoint {
         self.tensors.insert(name.into(), Tensor32 { shape, values });
     }
 
-    /// The tensor `name`, which must have `shape`; an error names the file otherwise.
+    /// The tensor `name`, which must have `shape` (up to axes of size 1: a 2D critic's weights
+    /// were stored without the depth axis they now have); an error names the file otherwise.
     pub fn tensor(&self, name: &str, shape: &[usize]) -> Result<&[f32]> {
         let t = self.tensors.get(name).ok_or_else(|| {
             input_error!(
@@ -58,7 +59,9 @@ impl Checkpoint {
                 self.source.display()
             )
         })?;
-        if t.shape != shape {
+        let squeezed = |s: &[usize]| s.iter().copied().filter(|&n| n != 1).collect::<Vec<_>>();
+        let lacks_unit_axes = t.shape.len() < shape.len() && squeezed(&t.shape) == squeezed(shape);
+        if t.shape != shape && !lacks_unit_axes {
             return Err(input_error!(
                 "{}: tensor {name} has shape {:?}, expected {:?}: the checkpoint is for another model shape",
                 self.source.display(),
@@ -198,124 +201,6 @@ impl Checkpoint {
             tensors,
         })
     }
-}
-
-/// Converts a generator saved by the authors' PyTorch code (nintendops/IPFN, `netG.pth`) into
-/// our config and weights. `octaves` and `crop` are not stored in their file: pass the values
-/// it was trained with (their defaults are 5 and 128).
-///
-/// Their state dict holds `K` `[dims]`, `mlp.blocks.{i}.layer.{weight,bias}` (1x1 convolutions,
-/// weight `[out, in, 1, 1]`, ReLU after each) and `mlp.last_conv.layer.*` (the output layer, tanh
-/// after it; their last block may repeat it under `mlp.blocks.{n}`).
-pub fn import_pytorch(
-    path: &Path,
-    octaves: usize,
-    crop: usize,
-) -> Result<(
-    crate::generator::GeneratorConfig,
-    crate::generator::GeneratorWeights,
-)> {
-    use crate::generator::{GeneratorConfig, GeneratorWeights, LayerWeights};
-    use burn::store::pytorch::PytorchReader;
-
-    let file = path.display();
-    let reader = PytorchReader::new(path).map_err(|e| match std::fs::metadata(path) {
-        Err(_) => input_error!("{file}: no such file"),
-        Ok(_) => input_error!("{file}: not a readable PyTorch checkpoint: {e}"),
-    })?;
-    let tensors = reader.into_tensors();
-    let read = |name: &str| -> Result<(Vec<usize>, Vec<f32>)> {
-        let t = tensors.get(name).ok_or_else(|| {
-            input_error!("{file}: no tensor '{name}': not an IPFN generator (netG) checkpoint")
-        })?;
-        let bytes = t
-            .read()
-            .map_err(|e| input_error!("{file}: tensor '{name}' is unreadable: {e}"))?;
-        let values: Vec<f32> = match t.dtype() {
-            burn::store::pytorch_reader::DType::F32 => bytes
-                .chunks_exact(4)
-                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                .collect(),
-            burn::store::pytorch_reader::DType::F64 => bytes
-                .chunks_exact(8)
-                .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")) as f32)
-                .collect(),
-            other => {
-                return Err(input_error!(
-                    "{file}: tensor '{name}' is {other:?}, expected float32"
-                ));
-            }
-        };
-        Ok((t.shape().to_vec(), values))
-    };
-    // A 1x1 convolution [out, in, 1, 1] as a linear layer [in, out].
-    let linear = |prefix: &str| -> Result<LayerWeights> {
-        let (shape, w) = read(&format!("{prefix}.weight"))?;
-        let (_, bias) = read(&format!("{prefix}.bias"))?;
-        if shape.len() != 4 || shape[2] != 1 || shape[3] != 1 || bias.len() != shape[0] {
-            return Err(input_error!(
-                "{file}: {prefix} has shape {shape:?}, expected a 1x1 convolution [out, in, 1, 1]"
-            ));
-        }
-        let (outputs, inputs) = (shape[0], shape[1]);
-        let mut weight = vec![0f32; inputs * outputs];
-        for o in 0..outputs {
-            for i in 0..inputs {
-                weight[i * outputs + o] = w[o * inputs + i];
-            }
-        }
-        Ok(LayerWeights {
-            inputs,
-            outputs,
-            weight,
-            bias,
-        })
-    };
-
-    let (_, k) = read("K")?;
-    let output = linear("mlp.last_conv.layer")?;
-    let mut layers = Vec::new();
-    while tensors.contains_key(&format!("mlp.blocks.{}.layer.weight", layers.len())) {
-        layers.push(linear(&format!("mlp.blocks.{}.layer", layers.len()))?);
-    }
-    if layers.last() == Some(&output) {
-        layers.pop(); // the output layer stored twice
-    }
-    if layers.is_empty() {
-        return Err(input_error!(
-            "{file}: no hidden layers (mlp.blocks.*): not an IPFN generator checkpoint"
-        ));
-    }
-    let dims = k.len();
-    let encoding = crate::encoding::channels(dims, octaves);
-    let width = layers[0].outputs;
-    if layers[0].inputs <= encoding {
-        return Err(input_error!(
-            "{file}: first layer takes {} inputs, fewer than the {encoding} encoding channels of {octaves} octaves; pass the right --octaves",
-            layers[0].inputs
-        ));
-    }
-    let config = GeneratorConfig::new()
-        .with_dims(dims)
-        .with_channels(output.outputs)
-        .with_octaves(octaves)
-        .with_latent_dim(layers[0].inputs - encoding)
-        .with_hidden_layers(layers.len())
-        .with_width(width)
-        .with_crop(crop);
-    config.validate().map_err(|e| input_error!("{file}: {e}"))?;
-    layers.push(output);
-    let expected = config.layer_shapes();
-    for (i, (l, &(inputs, outputs))) in layers.iter().zip(&expected).enumerate() {
-        if (l.inputs, l.outputs) != (inputs, outputs) {
-            return Err(input_error!(
-                "{file}: layer {i} is {}x{}, expected {inputs}x{outputs}: not a plain IPFN MLP",
-                l.inputs,
-                l.outputs
-            ));
-        }
-    }
-    Ok((config, GeneratorWeights { k, octaves, layers }))
 }
 
 /// Stores every float parameter of `module` as `{prefix}.{path}` (e.g. `critic.convs.0.weight`).

@@ -1,37 +1,43 @@
 //! `ipfn`: the Implicit Periodic Field Network (Chen et al., "Exemplar-based Pattern Synthesis
 //! with Implicit Periodic Field Network", CVPR 2022) in Rust.
 //!
-//! Modules follow the method:
+//! Modules follow the method (the README's "How the code is laid out" shows how data flows):
 //! - [`encoding`]: the periodic sin/cos encoding of `p / K`.
-//! - [`latent`]: the infinite, deterministic latent random field.
-//! - [`generator`]: the MLP generator (a burn module, and a fused CPU evaluator).
-//! - [`guidance`]: directional guidance (conditional IPFN): a guidance channel `g`.
-//! - [`critic`]: the critic, with its exact input gradient for the gradient penalty.
-//! - [`train`]: WGAN-GP training, checkpoints and resume.
-//! - [`sample`]: coordinate grids of pixels.
-//! - [`procedural`]: exemplars drawn by our own code, with known periods.
-//! - [`synth`]: painting regions and whole images, tileable or not.
-//! - [`checkpoint`]: model files, and import of the authors' PyTorch generators.
-//! - [`io`]: arrays and images in and out, written atomically.
+//! - [`latent`]: the infinite, deterministic latent random field (CPU, and its device lattice).
+//! - [`sample`]: coordinate grids of pixels, for synthesis and for training crops.
+//! - [`condition`]: the generator's optional condition: guidance (images) or density (volumes).
+//! - [`generator`]: the MLP generator (burn module, fused CPU evaluator, GPU kernel, PyTorch import).
+//! - [`critic`]: the critic over 2 or 3 axes, with its exact input gradient for the penalty.
+//! - [`train`]: WGAN-GP training: config, data, fakes, step, run folder and loop, Adam.
+//! - [`synth`]: painting regions, images, map sets and volumes, tileable or not.
+//! - [`model`]: which model a command paints with (most recent, shipped).
+//! - [`device`]: device choice and probes (cpu, flex, wgpu, cuda).
+//! - [`exemplar`]: exemplar images and SDF volumes, read into [-1, 1].
+//! - [`checkpoint`]: model files (`.ipfn`, safetensors).
+//! - [`io`]: arrays, images and volumes out, written atomically.
 //! - [`maps`]: material map sets (albedo, normal, height, ...) learned and painted together.
 //! - [`mesh`]: zero level sets of volumes as meshes (surface nets), welded across chunks.
 //! - [`metrics`]: SIFID (Keras InceptionV3 stem), seam score of tiles, dominant periods.
+//! - [`procedural`]: exemplars drawn by our own code, with known periods.
 //! - [`bench`]: `ipfn bench`, speed beside floors measured in the same run.
 //! - [`cli`]: the `ipfn` command line.
 
 pub mod bench;
 pub mod checkpoint;
 pub mod cli;
+pub mod condition;
 pub mod critic;
+pub mod device;
 pub mod encoding;
 pub mod error;
+pub mod exemplar;
 pub mod generator;
-pub mod guidance;
 pub mod io;
 pub mod latent;
 pub mod maps;
 pub mod mesh;
 pub mod metrics;
+pub mod model;
 pub mod procedural;
 pub mod sample;
 pub mod synth;

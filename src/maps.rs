@@ -11,8 +11,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::checkpoint::Checkpoint;
 use crate::error::Result;
+use crate::exemplar::Exemplar;
 use crate::input_error;
-use crate::io::{Exemplar, OutputFormat};
+use crate::io::OutputFormat;
 
 /// Checkpoint metadata key holding the [`MapSet`] (JSON) of a map-set model.
 pub const MAPS_KEY: &str = "maps";
@@ -38,6 +39,19 @@ pub struct MapSet {
 }
 
 impl MapSet {
+    /// The maps for messages: `albedo (3 ch, 16-bit), normal (3 ch, 16-bit, normal), ...`.
+    pub fn describe(&self) -> String {
+        let names: Vec<String> = self
+            .maps
+            .iter()
+            .map(|m| {
+                let normal = if m.normal { ", normal" } else { "" };
+                format!("{} ({} ch, {}-bit{normal})", m.name, m.channels, m.bits)
+            })
+            .collect();
+        names.join(", ")
+    }
+
     /// Total channels.
     pub fn channels(&self) -> usize {
         self.maps.iter().map(|m| m.channels).sum()
@@ -194,7 +208,7 @@ impl MapFiles {
         let mut maps = Vec::new();
         let mut images: Vec<Exemplar> = Vec::new();
         for (file, &normal) in self.files.iter().zip(&self.normal) {
-            let (mut image, bits) = crate::io::read_exemplar_with_bits(file)?;
+            let (mut image, bits) = crate::exemplar::read_exemplar_with_bits(file)?;
             if let Some(first) = images.first() {
                 let (w, h, b) = (first.width, first.height, maps_bits(&maps));
                 if (image.width, image.height) != (w, h) {

@@ -304,7 +304,7 @@ pub const MAX_VOXELIZE_RES: usize = 1024;
 ///   crossing too few, and the vote only limits the damage, so check `open_edges`.
 pub fn voxelize(mesh: &Mesh, res: usize, padding: f32) -> Result<Voxelized> {
     use parry3d::math::Vector;
-    use parry3d::query::{PointQuery, Ray, RayCast};
+    use parry3d::query::PointQuery;
     use rayon::prelude::*;
 
     if res == 0 {
@@ -333,8 +333,13 @@ pub fn voxelize(mesh: &Mesh, res: usize, padding: f32) -> Result<Voxelized> {
     let side = extent * (1.0 + 2.0 * padding.max(0.0));
     let centre: [f32; 3] = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]));
     let step = side / res as f32;
-    // Voxel centre along an axis.
-    let at = |a: usize, i: usize| centre[a] + (i as f32 + 0.5 - res as f32 * 0.5) * step;
+    let grid = VoxelGrid {
+        res,
+        side,
+        centre,
+        step,
+    };
+    let at = |a: usize, i: usize| grid.at(a, i);
 
     let vertices: Vec<Vector> = mesh
         .positions
@@ -344,7 +349,47 @@ pub fn voxelize(mesh: &Mesh, res: usize, padding: f32) -> Result<Voxelized> {
     let trimesh = parry3d::shape::TriMesh::new(vertices, mesh.triangles.clone())
         .map_err(|e| input_error!("the mesh cannot be indexed for distance queries ({e:?})"))?;
 
-    // Inside votes from the three axes.
+    let n = res * res * res;
+    let votes = inside_votes(&trimesh, &grid);
+    let values: Vec<f32> = (0..n)
+        .into_par_iter()
+        .map(|q| {
+            let (x, y, z) = (q % res, q / res % res, q / (res * res));
+            let p = Vector::new(at(0, x), at(1, y), at(2, z));
+            let d = trimesh.distance_to_local_point(p, false) / side;
+            if votes[q] >= 2 { -d } else { d }
+        })
+        .collect();
+
+    Ok(Voxelized {
+        values,
+        res,
+        open_edges: open_edges(mesh),
+    })
+}
+
+/// The voxel cube of [`voxelize`]: `res` voxels per side of length `side`, centred on `centre`.
+struct VoxelGrid {
+    res: usize,
+    side: f32,
+    centre: [f32; 3],
+    step: f32,
+}
+
+impl VoxelGrid {
+    /// Voxel centre along an axis.
+    fn at(&self, a: usize, i: usize) -> f32 {
+        self.centre[a] + (i as f32 + 0.5 - self.res as f32 * 0.5) * self.step
+    }
+}
+
+/// For every voxel, how many of the three axes' rays find it inside (odd crossings before it).
+fn inside_votes(trimesh: &parry3d::shape::TriMesh, grid: &VoxelGrid) -> Vec<u8> {
+    use parry3d::math::Vector;
+    use parry3d::query::{Ray, RayCast};
+    use rayon::prelude::*;
+    let (res, side, centre) = (grid.res, grid.side, grid.centre);
+    let at = |a: usize, i: usize| grid.at(a, i);
     let n = res * res * res;
     let index = |x: usize, y: usize, z: usize| (z * res + y) * res + x;
     let mut votes = vec![0u8; n];
@@ -394,17 +439,11 @@ pub fn voxelize(mesh: &Mesh, res: usize, padding: f32) -> Result<Voxelized> {
             }
         }
     }
-    let values: Vec<f32> = (0..n)
-        .into_par_iter()
-        .map(|q| {
-            let (x, y, z) = (q % res, q / res % res, q / (res * res));
-            let p = Vector::new(at(0, x), at(1, y), at(2, z));
-            let d = trimesh.distance_to_local_point(p, false) / side;
-            if votes[q] >= 2 { -d } else { d }
-        })
-        .collect();
+    votes
+}
 
-    // Open edges, after welding vertices at equal positions.
+/// Edges of the mesh used by one triangle only, after welding vertices at equal positions.
+fn open_edges(mesh: &Mesh) -> usize {
     let mut id: HashMap<[u32; 3], u32> = HashMap::new();
     let welded: Vec<u32> = mesh
         .positions
@@ -424,11 +463,7 @@ pub fn voxelize(mesh: &Mesh, res: usize, padding: f32) -> Result<Voxelized> {
             .collect(),
         cells: Vec::new(),
     };
-    Ok(Voxelized {
-        values,
-        res,
-        open_edges: boundary_edges(&closed).len(),
-    })
+    boundary_edges(&closed).len()
 }
 
 #[cfg(test)]

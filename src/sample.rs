@@ -26,48 +26,37 @@ impl PixelGrid {
         ((i as f64 + 0.5) * self.spacing) as f32
     }
 
-    /// Writes the `(row, col)` coordinates of `count` consecutive pixels of a `width`-wide region
-    /// whose top-left pixel is `(y0, x0)`, starting at flat index `start` (row-major), into
-    /// `out` (`[count, 2]`).
-    pub fn region_coordinates(
+    /// Writes the coordinates of `count` consecutive points of the box of `shape` whose first
+    /// pixel is `origin` (both in array order, 2 or 3 axes), starting at flat index `start`
+    /// (row-major), into `out` (`[count, axes]`).
+    pub fn coordinates(
         &self,
-        y0: i64,
-        x0: i64,
-        width: usize,
+        origin: &[i64],
+        shape: &[usize],
         start: usize,
         count: usize,
         out: &mut Vec<f32>,
     ) {
+        let axes = shape.len();
         out.clear();
-        out.reserve(count * 2);
+        out.reserve(count * axes);
         for flat in start..start + count {
-            let (row, col) = ((flat / width) as i64, (flat % width) as i64);
-            out.push(self.coordinate(y0 + row));
-            out.push(self.coordinate(x0 + col));
+            let mut rest = flat;
+            let at = out.len();
+            out.resize(at + axes, 0.0);
+            for a in (0..axes).rev() {
+                let i = rest % shape[a];
+                rest /= shape[a];
+                out[at + a] = self.coordinate(origin[a] + i as i64);
+            }
         }
     }
+}
 
-    /// Writes the `(depth, row, col)` coordinates of `count` consecutive voxels of a
-    /// `height x width` box whose first voxel is `(z0, y0, x0)`, starting at flat index `start`
-    /// (row-major), into `out` (`[count, 3]`).
-    #[allow(clippy::too_many_arguments)]
-    pub fn box_coordinates(
-        &self,
-        origin: [i64; 3],
-        height: usize,
-        width: usize,
-        start: usize,
-        count: usize,
-        out: &mut Vec<f32>,
-    ) {
-        out.clear();
-        out.reserve(count * 3);
-        for flat in start..start + count {
-            let plane = height * width;
-            let (d, r, c) = (flat / plane, (flat % plane) / width, flat % width);
-            out.push(self.coordinate(origin[0] + d as i64));
-            out.push(self.coordinate(origin[1] + r as i64));
-            out.push(self.coordinate(origin[2] + c as i64));
-        }
-    }
+/// A training crop's grid: pixel `i` of a `crop`-pixel crop lies at `-1 + (i + 0.5) * 2 / crop`
+/// (the crop spans [-1, 1]), moved by the sample's random `shift`. This is [`PixelGrid`] at
+/// zoom 1 with its origin at the crop's centre, computed in f32 as training always has.
+pub fn crop_coordinate(crop: usize, i: usize, shift: f32) -> f32 {
+    let step = 2.0 / crop as f32;
+    -1.0 + (i as f32 + 0.5) * step + shift
 }

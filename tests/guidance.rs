@@ -5,10 +5,11 @@ mod common;
 
 use common::{assert_error, ipfn, max_abs_diff, stderr};
 use ipfn::checkpoint::Checkpoint;
+use ipfn::condition::Guide;
+use ipfn::device::DeviceChoice;
 use ipfn::generator::GeneratorWeights;
-use ipfn::guidance::Guide;
 use ipfn::io::read_npy;
-use ipfn::synth::{DeviceChoice, Synth};
+use ipfn::synth::Synth;
 
 use common::SMALL_CONFIG as CONFIG;
 
@@ -95,20 +96,19 @@ fn a_guided_model_follows_a_ramp_the_exemplar_never_had() {
     let render = |device| {
         Synth::new(config.clone(), weights.clone())
             .seed(2)
-            .offset(-7, 3)
+            .offset(&[3, -7])
             .guide(
                 Guide::Line {
                     a: -0.5,
                     b: 0.8,
                     c: 0.1,
                 },
-                40,
-                30,
+                [30, 40],
             )
             .device(device)
             .painter()
             .unwrap()
-            .render(0, 0, 40, 30)
+            .render(&[0, 0], &[30, 40])
     };
     let diff = max_abs_diff(&render(DeviceChoice::Cpu), &render(DeviceChoice::Flex));
     assert!(diff < 1e-4, "fused vs flex on a guided model: {diff}");

@@ -7,11 +7,12 @@
 mod common;
 
 use common::{honeycomb, max_abs_diff, skip_wgpu};
+use ipfn::device::DeviceChoice;
 use ipfn::generator::fused::{FusedGenerator, Scratch};
 use ipfn::generator::kernel::KernelGenerator;
 use ipfn::generator::{GeneratorConfig, GeneratorWeights};
 use ipfn::latent::LatentField;
-use ipfn::synth::{DeviceChoice, Synth};
+use ipfn::synth::Synth;
 
 fn wgpu() -> Option<burn::tensor::Device> {
     if skip_wgpu() {
@@ -63,7 +64,7 @@ fn wgpu_synthesis_paints_with_the_kernel_and_agrees_with_burn_and_cpu() {
     let painter = |device, kernel| {
         Synth::new(config.clone(), weights.clone())
             .seed(3)
-            .offset(-17, 40)
+            .offset(&[40, -17])
             .device(device)
             .gpu_kernel(kernel)
             .painter()
@@ -73,9 +74,9 @@ fn wgpu_synthesis_paints_with_the_kernel_and_agrees_with_burn_and_cpu() {
     let burn = painter(DeviceChoice::Wgpu, false);
     assert_eq!(kernel.engine(), "kernel", "wgpu paints with the kernel");
     assert_eq!(burn.engine(), "burn");
-    let cpu = painter(DeviceChoice::Cpu, true).render(0, 0, 61, 45);
-    let by_kernel = kernel.render(0, 0, 61, 45);
-    let by_burn = burn.render(0, 0, 61, 45);
+    let cpu = painter(DeviceChoice::Cpu, true).render(&[0, 0], &[45, 61]);
+    let by_kernel = kernel.render(&[0, 0], &[45, 61]);
+    let by_burn = burn.render(&[0, 0], &[45, 61]);
     let (to_cpu, to_burn) = (
         max_abs_diff(&by_kernel, &cpu),
         max_abs_diff(&by_kernel, &by_burn),

@@ -6,10 +6,10 @@
 mod common;
 
 use common::skip_wgpu;
+use ipfn::device::DeviceChoice;
 use ipfn::generator::kernel::KernelGenerator;
 use ipfn::generator::{GeneratorConfig, GeneratorWeights};
 use ipfn::latent::LatentField;
-use ipfn::synth::DeviceChoice;
 
 #[test]
 fn kernel_device_memory_is_bounded_by_the_launch_not_the_image() {

@@ -164,7 +164,7 @@ fn map_set_trains_and_paints_aligned_maps_whose_normals_follow_the_height() {
         .seed(3)
         .painter()
         .unwrap()
-        .render(0, 0, w, h);
+        .render(&[0, 0], &[h, w]);
     let maps = split(&full, &set);
     let written: Vec<Vec<f32>> = ["albedo", "normal", "roughness", "height"]
         .iter()
@@ -199,7 +199,7 @@ fn map_set_trains_and_paints_aligned_maps_whose_normals_follow_the_height() {
             .seed(3)
             .painter()
             .unwrap()
-            .render(0, 0, w, h);
+            .render(&[0, 0], &[h, w]);
         let m = split(&v, &set);
         tilt_correlation(&m[1], &m[3], w, h)
     };
@@ -212,10 +212,10 @@ fn map_set_trains_and_paints_aligned_maps_whose_normals_follow_the_height() {
     // --tile holds for every map: the whole stacked pixel repeats with the tile's period.
     let tile = Synth::new(config, weights)
         .seed(3)
-        .tile(w, h)
+        .tile(&[h, w])
         .painter()
         .unwrap()
-        .render(0, 0, w + 1, h + 1);
+        .render(&[0, 0], &[h + 1, w + 1]);
     let c = set.channels();
     for y in 0..h {
         for k in 0..c {
@@ -377,7 +377,7 @@ fn float_maps_are_painted_as_exr() {
     );
     assert!(synth.status.success(), "{}", stderr(&synth));
     for name in ["f-base.exr", "f-mask.exr"] {
-        let image = ipfn::io::read_exemplar(&d.join(name)).unwrap();
+        let image = ipfn::exemplar::read_exemplar(&d.join(name)).unwrap();
         assert_eq!((image.width, image.height), (32, 32), "{name}");
     }
     assert!(!d.join("f-base.png").exists());

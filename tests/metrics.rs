@@ -23,7 +23,7 @@ fn expected() -> serde_json::Value {
 
 /// A square crop (`[size, size, 3]` in [0, 1]) of an image, as the reference script takes it.
 fn crop(file: &str, x0: usize, y0: usize, size: usize) -> Vec<f32> {
-    let image = ipfn::io::read_exemplar(&root().join(file)).unwrap();
+    let image = ipfn::exemplar::read_exemplar(&root().join(file)).unwrap();
     let rgb = metrics::to_unit_rgb(&image.values, image.channels).unwrap();
     let mut out = Vec::with_capacity(size * size * 3);
     for y in y0..y0 + size {

@@ -8,11 +8,11 @@ mod common;
 
 use burn::prelude::*;
 use common::{data, honeycomb, max_abs_diff};
+use ipfn::device::DeviceChoice;
 use ipfn::generator::Generator;
 use ipfn::generator::fused::{FusedGenerator, Scratch};
 use ipfn::io::read_npy;
 use ipfn::latent::LatentField;
-use ipfn::synth::DeviceChoice;
 
 /// An independent float32 evaluation of the recipe differs from the reference by 2.3e-5.
 const TOLERANCE: f32 = 1e-3;

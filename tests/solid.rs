@@ -6,8 +6,9 @@ mod common;
 
 use common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
+use ipfn::exemplar::read_exemplar;
 use ipfn::generator::GeneratorWeights;
-use ipfn::io::{read_exemplar, read_npy};
+use ipfn::io::read_npy;
 use ipfn::metrics::{sifid, to_unit_rgb};
 use ipfn::synth::Synth;
 
@@ -131,8 +132,8 @@ fn slices_of_a_solid_texture_resemble_the_exemplar_along_every_axis() {
 
     // The library gives the same plane.
     let (config, weights) = GeneratorWeights::read_from(&model).unwrap();
-    let painter = Synth::new(config, weights).volume_painter().unwrap();
-    assert_eq!(painter.render([40, 0, 0], 1, SIDE, SIDE), z40);
+    let painter = Synth::new(config, weights).painter().unwrap();
+    assert_eq!(painter.render(&[40, 0, 0], &[1, SIDE, SIDE]), z40);
 }
 
 #[test]

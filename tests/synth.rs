@@ -3,8 +3,9 @@
 mod common;
 
 use common::{honeycomb, max_abs_diff};
+use ipfn::device::DeviceChoice;
 use ipfn::io::{OutputFormat, read_npy};
-use ipfn::synth::{DeviceChoice, Painter, Synth};
+use ipfn::synth::{Painter, Synth};
 
 fn painter(seed: u64, device: DeviceChoice) -> Painter {
     let (config, weights) = honeycomb();
@@ -34,10 +35,10 @@ fn window(
 fn adjacent_regions_equal_one_render_exactly() {
     let p = painter(5, DeviceChoice::Cpu);
     // Width 97 so chunk boundaries fall mid-row and differ between the renders.
-    let whole = p.render(-40, 13, 97, 30);
-    let left = p.render(-40, 13, 50, 30);
-    let right = p.render(10, 13, 47, 30);
-    let bottom = p.render(-40, 33, 97, 10);
+    let whole = p.render(&[13, -40], &[30, 97]);
+    let left = p.render(&[13, -40], &[30, 50]);
+    let right = p.render(&[13, 10], &[30, 47]);
+    let bottom = p.render(&[33, -40], &[10, 97]);
     assert_eq!(window(&whole, 97, 3, 0, 0, 50, 30), left);
     assert_eq!(window(&whole, 97, 3, 50, 0, 47, 30), right);
     assert_eq!(window(&whole, 97, 3, 0, 20, 97, 10), bottom);
@@ -45,9 +46,9 @@ fn adjacent_regions_equal_one_render_exactly() {
 
 #[test]
 fn same_seed_same_pixels_other_seed_other_pixels() {
-    let a = painter(1, DeviceChoice::Cpu).render(0, 0, 32, 32);
-    let b = painter(1, DeviceChoice::Cpu).render(0, 0, 32, 32);
-    let c = painter(2, DeviceChoice::Cpu).render(0, 0, 32, 32);
+    let a = painter(1, DeviceChoice::Cpu).render(&[0, 0], &[32, 32]);
+    let b = painter(1, DeviceChoice::Cpu).render(&[0, 0], &[32, 32]);
+    let c = painter(2, DeviceChoice::Cpu).render(&[0, 0], &[32, 32]);
     assert_eq!(a, b);
     assert!(
         max_abs_diff(&a, &c) > 0.1,
@@ -59,8 +60,8 @@ fn same_seed_same_pixels_other_seed_other_pixels() {
 fn field_is_infinite_far_from_the_origin() {
     // The authors' 32x32 grid stops varying past ~32 units; ours keeps varying.
     let p = painter(3, DeviceChoice::Cpu);
-    let far_a = p.render(1_000_000, -2_000_000, 16, 16);
-    let far_b = p.render(1_000_000 + 64 * 40, -2_000_000, 16, 16);
+    let far_a = p.render(&[-2_000_000, 1_000_000], &[16, 16]);
+    let far_b = p.render(&[-2_000_000, 1_000_000 + 64 * 40], &[16, 16]);
     assert!(max_abs_diff(&far_a, &far_b) > 0.1);
 }
 
@@ -72,7 +73,7 @@ fn tile_is_exactly_periodic() {
     let (w, h) = (150usize, 90usize);
     let tiled = Synth::new(config.clone(), weights.clone())
         .seed(4)
-        .tile(w, h)
+        .tile(&[h, w])
         .painter()
         .unwrap();
     let adj = tiled.tile_adjustment().unwrap();
@@ -80,7 +81,7 @@ fn tile_is_exactly_periodic() {
         adj.k_used.iter().zip(&adj.k_trained).any(|(a, b)| a != b),
         "this size should need snapping"
     );
-    let big = tiled.render(0, 0, 2 * w, 2 * h);
+    let big = tiled.render(&[0, 0], &[2 * h, 2 * w]);
     let col = |x: usize| window(&big, 2 * w, 3, x, 0, 1, 2 * h);
     let row = |y: usize| window(&big, 2 * w, 3, 0, y, 2 * w, 1);
     assert!(
@@ -96,7 +97,7 @@ fn tile_is_exactly_periodic() {
         .seed(4)
         .painter()
         .unwrap()
-        .render(0, 0, 2 * w, 2 * h);
+        .render(&[0, 0], &[2 * h, 2 * w]);
     assert!(
         max_abs_diff(
             &window(&plain, 2 * w, 3, w, 0, 1, 2 * h),
@@ -111,11 +112,11 @@ fn streamed_file_equals_in_memory_render() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("out.npy");
     // 7-pixel bands over 45 rows: several bands and a short last one.
-    p.write_image(&path, OutputFormat::Npy, 33, 45, 33 * 7, |_| {})
+    p.write_image(&path, OutputFormat::Npy, [45, 33], 33 * 7, |_| {})
         .unwrap();
     let (shape, values) = read_npy(&path).unwrap();
     assert_eq!(shape, [45, 33, 3]);
-    assert_eq!(values, p.render(0, 0, 33, 45));
+    assert_eq!(values, p.render(&[0, 0], &[45, 33]));
     let leftovers: Vec<_> = std::fs::read_dir(dir.path())
         .unwrap()
         .flatten()
@@ -130,8 +131,8 @@ fn streamed_file_equals_in_memory_render() {
 
 /// The fused CPU evaluator, burn-flex and burn-wgpu paint the same pixels.
 fn agrees_with_fused_cpu(device: DeviceChoice) {
-    let reference = painter(11, DeviceChoice::Cpu).render(-20, 7, 70, 50);
-    let ours = painter(11, device).render(-20, 7, 70, 50);
+    let reference = painter(11, DeviceChoice::Cpu).render(&[7, -20], &[50, 70]);
+    let ours = painter(11, device).render(&[7, -20], &[50, 70]);
     let diff = max_abs_diff(&reference, &ours);
     eprintln!("{device:?} vs fused CPU: max abs difference {diff:.2e}");
     assert!(
@@ -153,11 +154,11 @@ fn mirror_tiles_are_symmetric_periodic_and_paint_the_plain_quarter() {
     let (w, h, c) = (37, 24, 3); // an odd width: the centre column is its own mirror
     let mirrored = Synth::new(config.clone(), weights.clone())
         .seed(4)
-        .offset(-9, 5)
-        .mirror(w, h)
+        .offset(&[5, -9])
+        .mirror([h, w])
         .painter()
         .unwrap();
-    let tile = mirrored.render(0, 0, w, h);
+    let tile = mirrored.render(&[0, 0], &[h, w]);
     let px = |img: &[f32], x: usize, y: usize| img[(y * w + x) * c..(y * w + x + 1) * c].to_vec();
     for y in 0..h {
         for x in 0..w {
@@ -174,16 +175,16 @@ fn mirror_tiles_are_symmetric_periodic_and_paint_the_plain_quarter() {
         }
     }
     // The neighbouring tiles repeat it exactly.
-    assert_eq!(mirrored.render(w as i64, 0, w, h), tile);
-    assert_eq!(mirrored.render(0, -(h as i64), w, h), tile);
+    assert_eq!(mirrored.render(&[0, w as i64], &[h, w]), tile);
+    assert_eq!(mirrored.render(&[-(h as i64), 0], &[h, w]), tile);
     // The quarter is what the plain synthesis paints there.
     let (qw, qh) = (w.div_ceil(2), h.div_ceil(2));
     let plain = Synth::new(config, weights)
         .seed(4)
-        .offset(-9, 5)
+        .offset(&[5, -9])
         .painter()
         .unwrap()
-        .render(0, 0, qw, qh);
+        .render(&[0, 0], &[qh, qw]);
     assert_eq!(window(&tile, w, c, 0, 0, qw, qh), plain);
 }
 
@@ -196,7 +197,7 @@ fn noise_scale_enlarges_the_latent_cells() {
             .noise_scale(scale)
             .painter()
             .unwrap()
-            .render(0, 0, 48, 40)
+            .render(&[0, 0], &[40, 48])
     };
     let as_trained = render(config.clone(), 1.0);
     let doubled = render(config.clone(), 2.0);

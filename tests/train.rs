@@ -258,16 +258,16 @@ fn exemplar_formats_load_with_their_channels() {
     image::RgbImage::from_fn(8, 8, |_, _| image::Rgb([255, 0, 128]))
         .save(d.join("c.jpg"))
         .unwrap();
-    let g = ipfn::io::read_exemplar(&d.join("g.png")).unwrap();
+    let g = ipfn::exemplar::read_exemplar(&d.join("g.png")).unwrap();
     assert_eq!((g.width, g.height, g.channels), (20, 10, 1));
     assert!((g.values[1] - (12.0 / 255.0 * 2.0 - 1.0)).abs() < 1e-6);
-    let a = ipfn::io::read_exemplar(&d.join("a.png")).unwrap();
+    let a = ipfn::exemplar::read_exemplar(&d.join("a.png")).unwrap();
     assert_eq!(a.channels, 4);
     assert!(
         (a.values[3] - (32768.0 / 65535.0 * 2.0 - 1.0)).abs() < 1e-6,
         "16-bit precision kept"
     );
-    let c = ipfn::io::read_exemplar(&d.join("c.jpg")).unwrap();
+    let c = ipfn::exemplar::read_exemplar(&d.join("c.jpg")).unwrap();
     assert_eq!(c.channels, 3);
     assert!(c.values[0] > 0.9 && c.values[1] < -0.9);
     let half = a.resized(4, 4);
@@ -325,7 +325,7 @@ fn it_learns_the_period_of_stripes() {
         k[1]
     );
 
-    let critic = trainer.critic().image().expect("an image run").valid();
+    let critic = trainer.critic().valid();
     let inner = device.clone();
     let gap = |g: &ipfn::generator::Generator| {
         let mut total = 0.0;
@@ -426,7 +426,7 @@ fn resize_keeps_every_channel() {
     let half = ipfn::train::load_exemplar(&path, 0.5).unwrap();
     assert_eq!((half.width, half.height, half.channels), (128, 128, 3));
     for ch in 0..3 {
-        let mean = |e: &ipfn::io::Exemplar| {
+        let mean = |e: &ipfn::exemplar::Exemplar| {
             e.values.iter().skip(ch).step_by(3).sum::<f32>() / (e.width * e.height) as f32
         };
         assert!(
@@ -458,11 +458,12 @@ fn shipped_presets_parse() {
     // The volume presets: cubic crops the 3D critic accepts.
     for name in ["porous.toml", "foam.toml"] {
         let preset = read(name);
-        let critic = TrainConfig {
+        let volume = TrainConfig {
             volume: true,
             ..preset.clone()
-        }
-        .volume_critic_config();
+        };
+        let kind = volume.run_kind().unwrap();
+        let critic = volume.critic_config(&kind, 1);
         critic.validate().unwrap();
         assert!(preset.crop >= 32 && preset.sdf_scale == 10.0, "{name}");
     }

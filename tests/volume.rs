@@ -5,8 +5,9 @@ mod common;
 
 use common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
+use ipfn::exemplar::read_sdf_volume;
 use ipfn::generator::{GeneratorConfig, GeneratorWeights};
-use ipfn::io::{read_npy, read_sdf_volume};
+use ipfn::io::read_npy;
 use ipfn::synth::Synth;
 use npyz::WriterBuilder;
 
@@ -21,9 +22,9 @@ fn model_3d() -> (GeneratorConfig, GeneratorWeights) {
     // Centre the output on 0, so the volume has a zero level set to mesh.
     let probe = Synth::new(config.clone(), weights.clone())
         .seed(0)
-        .volume_painter()
+        .painter()
         .unwrap()
-        .render([0, 0, 0], 8, 8, 8);
+        .render(&[0, 0, 0], &[8, 8, 8]);
     let mean = probe.iter().sum::<f32>() / probe.len() as f32;
     weights.layers.last_mut().unwrap().bias[0] -= mean.atanh();
     (config, weights)
@@ -75,26 +76,23 @@ fn sdf_volumes_are_read_scaled_and_clamped() {
 #[test]
 fn volume_synthesis_is_the_same_in_any_chunking() {
     let (config, weights) = model_3d();
-    let painter = Synth::new(config, weights)
-        .seed(9)
-        .volume_painter()
-        .unwrap();
+    let painter = Synth::new(config, weights).seed(9).painter().unwrap();
     let (dd, h, w) = (9, 11, 13);
-    let whole = painter.render([0, 0, 0], dd, h, w);
+    let whole = painter.render(&[0, 0, 0], &[dd, h, w]);
     // Slabs of one slice, and of four, concatenate to the whole.
     for slab in [1, 4] {
         let mut parts = Vec::new();
         let mut z = 0;
         while z < dd {
             let n = slab.min(dd - z);
-            parts.extend(painter.render([z as i64, 0, 0], n, h, w));
+            parts.extend(painter.render(&[z as i64, 0, 0], &[n, h, w]));
             z += n;
         }
         assert_eq!(parts, whole, "slabs of {slab}");
     }
     // A sub-box at an origin is that part of the whole (its rows are evaluated in other
     // chunks, so equal up to float rounding).
-    let sub = painter.render([2, 3, 5], 4, 5, 6);
+    let sub = painter.render(&[2, 3, 5], &[4, 5, 6]);
     for a in 0..4 {
         for b in 0..5 {
             for c in 0..6 {
@@ -113,26 +111,23 @@ fn volume_synthesis_is_the_same_in_any_chunking() {
 fn volume_and_mesh_in_one_pass() {
     let dir = tempfile::tempdir().unwrap();
     let (config, weights) = model_3d();
-    let painter = Synth::new(config, weights)
-        .seed(3)
-        .volume_painter()
-        .unwrap();
+    let painter = Synth::new(config, weights).seed(3).painter().unwrap();
     let (dd, h, w) = (11, 9, 10);
     for slab_slices in [1, 2, 4, 20] {
         let path = dir.path().join(format!("v{slab_slices}.npy"));
         let mut builder = ipfn::mesh::MeshBuilder::new(h, w);
         painter
-            .write_npy(&path, dd, h, w, slab_slices * h * w, Some(&mut builder))
+            .write_volume(&path, [dd, h, w], slab_slices * h * w, Some(&mut builder))
             .unwrap();
         let (shape, values) = read_npy(&path).unwrap();
         assert_eq!(shape, [dd, h, w, 1]);
         assert_eq!(
             values,
-            painter.render([0, 0, 0], dd, h, w),
+            painter.render(&[0, 0, 0], &[dd, h, w]),
             "slabs of {slab_slices}"
         );
         let mesh = builder.finish();
-        assert_eq!(mesh, painter.mesh(dd, h, w, slab_slices * h * w));
+        assert_eq!(mesh, painter.mesh([dd, h, w], slab_slices * h * w));
         assert!(!mesh.triangles.is_empty());
     }
 }
@@ -143,12 +138,12 @@ fn tiled_volumes_repeat_on_every_axis() {
     let (dd, h, w) = (12, 10, 14);
     let painter = Synth::new(config.clone(), weights.clone())
         .seed(5)
-        .tile_volume(dd, h, w)
-        .volume_painter()
+        .tile(&[dd, h, w])
+        .painter()
         .unwrap();
     assert_eq!(painter.tile_adjustment().unwrap().lattice_period.len(), 3);
     // One voxel past the tile on each axis equals the first voxel of that axis.
-    let v = painter.render([0, 0, 0], dd + 1, h + 1, w + 1);
+    let v = painter.render(&[0, 0, 0], &[dd + 1, h + 1, w + 1]);
     let at = |z: usize, y: usize, x: usize| v[(z * (h + 1) + y) * (w + 1) + x];
     let mut worst = 0f32;
     for a in 0..dd {
@@ -168,9 +163,9 @@ fn tiled_volumes_repeat_on_every_axis() {
     // Without --tile it does not wrap.
     let plain = Synth::new(config.clone(), weights.clone())
         .seed(5)
-        .volume_painter()
+        .painter()
         .unwrap()
-        .render([0, 0, 0], dd + 1, 1, 1);
+        .render(&[0, 0, 0], &[dd + 1, 1, 1]);
     assert!((plain[dd] - plain[0]).abs() > 1e-4);
 
     // `ipfn synth --tile` paints that tile and says how far K moved; `--slice` writes one
@@ -191,7 +186,7 @@ fn tiled_volumes_repeat_on_every_axis() {
     assert!(stderr(&out).contains("K snapped"), "{}", stderr(&out));
     let (shape, values) = read_npy(&d.join("t.npy")).unwrap();
     assert_eq!(shape, [dd, h, w, 1]);
-    assert_eq!(values, painter.render([0, 0, 0], dd, h, w));
+    assert_eq!(values, painter.render(&[0, 0, 0], &[dd, h, w]));
     let out = ipfn(
         d,
         &[
@@ -228,9 +223,9 @@ fn synth_depth_writes_a_volume_and_refuses_mismatches() {
     assert_eq!(shape, [7, 10, 12, 1]);
     let expected = Synth::new(config.clone(), weights.clone())
         .seed(4)
-        .volume_painter()
+        .painter()
         .unwrap()
-        .render([0, 0, 0], 7, 10, 12);
+        .render(&[0, 0, 0], &[7, 10, 12]);
     assert_eq!(values, expected);
 
     // .raw: the same float32 values, little-endian, with no header.
@@ -268,9 +263,9 @@ fn synth_depth_writes_a_volume_and_refuses_mismatches() {
     let painter = |noise: f64| {
         Synth::new(config.clone(), weights.clone())
             .noise_scale(noise)
-            .volume_painter()
+            .painter()
             .unwrap()
-            .render([0, 0, 0], 4, 5, 6)
+            .render(&[0, 0, 0], &[4, 5, 6])
     };
     assert_eq!(values, painter(2.5));
     assert_ne!(values, painter(1.0), "--noise-scale changes a volume");
@@ -289,9 +284,9 @@ fn synth_depth_writes_a_volume_and_refuses_mismatches() {
     let vertices = obj.lines().filter(|l| l.starts_with("v ")).count();
     let expected = Synth::new(config.clone(), weights.clone())
         .seed(4)
-        .volume_painter()
+        .painter()
         .unwrap()
-        .mesh(9, 16, 16, 1 << 20);
+        .mesh([9, 16, 16], 1 << 20);
     assert_eq!(
         (vertices, faces),
         (expected.positions.len(), expected.triangles.len())
@@ -449,24 +444,24 @@ fn synth_depth_writes_a_volume_and_refuses_mismatches() {
 
 /// Volumes paint the same voxels on the fused CPU evaluator, burn-flex and burn-wgpu (where the
 /// latent lattice is blended on the device), in any slab split.
-fn volume_agrees_with_fused_cpu(device: ipfn::synth::DeviceChoice) {
+fn volume_agrees_with_fused_cpu(device: ipfn::device::DeviceChoice) {
     let (config, weights) = model_3d();
     let painter = |device| {
         Synth::new(config.clone(), weights.clone())
             .seed(5)
             .device(device)
-            .volume_painter()
+            .painter()
             .unwrap()
     };
-    let reference = painter(ipfn::synth::DeviceChoice::Cpu).render([-3, 2, -7], 6, 9, 11);
+    let reference = painter(ipfn::device::DeviceChoice::Cpu).render(&[-3, 2, -7], &[6, 9, 11]);
     let ours = painter(device);
-    let whole = ours.render([-3, 2, -7], 6, 9, 11);
+    let whole = ours.render(&[-3, 2, -7], &[6, 9, 11]);
     let diff = common::max_abs_diff(&reference, &whole);
     eprintln!("{device:?} volume vs fused CPU: max abs difference {diff:.2e}");
     assert!(diff < 1e-4, "{device:?} differs by {diff}");
     // Slabs of 2 slices render the same chunks, so the same values.
-    let mut parts = ours.render([-3, 2, -7], 2, 9, 11);
-    parts.extend(ours.render([-1, 2, -7], 4, 9, 11));
+    let mut parts = ours.render(&[-3, 2, -7], &[2, 9, 11]);
+    parts.extend(ours.render(&[-1, 2, -7], &[4, 9, 11]));
     assert_eq!(parts, whole, "{device:?}: slabs of 2 + 4");
 }
 

@@ -6,8 +6,9 @@ mod common;
 
 use common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
+use ipfn::exemplar::read_sdf_volume;
 use ipfn::generator::GeneratorWeights;
-use ipfn::io::{read_npy, read_sdf_volume};
+use ipfn::io::read_npy;
 use npyz::WriterBuilder;
 
 /// A small model and 3D critic (crop 16, 4x32 generator): 300 iterations take about 95 s on 2

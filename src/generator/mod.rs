@@ -11,6 +11,8 @@
 //! - [`kernel::KernelGenerator`], one CubeCL kernel for fast synthesis on GPUs (wgpu, CUDA).
 
 pub mod fused;
+pub mod import;
+pub use import::import_pytorch;
 #[cfg(any(feature = "wgpu", feature = "cuda"))]
 pub mod kernel;
 /// Builds without a GPU feature have no generator kernel.

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use ipfn::synth::DeviceChoice;
+use ipfn::device::DeviceChoice;
 
 /// Runs one test body on every device, like candle's `test_device!`: the fused CPU evaluator,
 /// burn-flex and burn-wgpu. Backends cannot drift apart unnoticed.
@@ -16,18 +16,18 @@ macro_rules! test_device {
     ($body:ident, $cpu:ident, $flex:ident, $wgpu:ident) => {
         #[test]
         fn $cpu() {
-            $body(ipfn::synth::DeviceChoice::Cpu);
+            $body(ipfn::device::DeviceChoice::Cpu);
         }
         #[test]
         fn $flex() {
-            $body(ipfn::synth::DeviceChoice::Flex);
+            $body(ipfn::device::DeviceChoice::Flex);
         }
         #[test]
         fn $wgpu() {
             if $crate::common::skip_wgpu() {
                 return;
             }
-            $body(ipfn::synth::DeviceChoice::Wgpu);
+            $body(ipfn::device::DeviceChoice::Wgpu);
         }
     };
 }
@@ -63,7 +63,7 @@ pub fn honeycomb() -> (
     ipfn::generator::GeneratorConfig,
     ipfn::generator::GeneratorWeights,
 ) {
-    ipfn::checkpoint::import_pytorch(&data("official-honeycomb/netG.pth"), 5, 128)
+    ipfn::generator::import_pytorch(&data("official-honeycomb/netG.pth"), 5, 128)
         .expect("netG.pth imports")
 }
 

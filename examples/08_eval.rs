@@ -1,0 +1,28 @@
+//! README section "`ipfn eval`: how good is a model", as library calls.
+//!
+//! `cargo run --release --example 08_eval` scores the shipped honeycomb model against the
+//! shipped honeycomb exemplar: SIFID over 2 samples, the seam score of `--tile` samples laid
+//! 2x2, and the period from K beside the exemplar's autocorrelation peak.
+
+use std::path::Path;
+
+use ipfn::device::DeviceChoice;
+use ipfn::metrics::evaluate_model;
+use ipfn::model::shipped_model;
+
+fn main() -> ipfn::Result<()> {
+    let (config, weights) = shipped_model()?;
+    let exemplar = ipfn::exemplar::read_exemplar(Path::new("exemplars/honeycomb.png"))?;
+    // `ipfn eval --exemplar exemplars/honeycomb.png --samples 2`
+    let report = evaluate_model(&config, &weights, &exemplar, 2, 0, DeviceChoice::Cpu)?;
+    println!(
+        "SIFID {:.3} ± {:.3}; seam score {:.3} (exemplar laid 2x2: {:.3}); period {:.1} x {:.1} px",
+        report.sifid.mean,
+        report.sifid.std,
+        report.seam_model_tile.overall,
+        report.seam_exemplar.overall,
+        report.period_model[0],
+        report.period_model[1]
+    );
+    Ok(())
+}

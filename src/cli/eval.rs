@@ -1,0 +1,141 @@
+//! `ipfn eval`: SIFID, seam score and period of a model against its exemplar, or SIFID of two
+//! images.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::Args;
+
+use crate::device::DeviceChoice;
+use crate::error::Result;
+use crate::input_error;
+use crate::model::choose_model;
+
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Model file (.ipfn). Default: as for synth (most recent model here, else the shipped one).
+    #[arg(long, value_name = "PATH", conflicts_with = "images")]
+    pub model: Option<PathBuf>,
+    /// The exemplar the model was trained on (PNG, JPEG or EXR).
+    #[arg(
+        long,
+        value_name = "PATH",
+        required_unless_present = "images",
+        conflicts_with = "images"
+    )]
+    pub exemplar: Option<PathBuf>,
+    /// Compare two images directly: SIFID of A to B.
+    #[arg(long, num_args = 2, value_names = ["A", "B"])]
+    pub images: Option<Vec<PathBuf>>,
+    /// Samples to synthesize (seeds --seed, --seed + 1, ...), each at the exemplar's size.
+    #[arg(long, default_value_t = 8, conflicts_with = "images")]
+    pub samples: usize,
+    /// First seed.
+    #[arg(long, default_value_t = 0, conflicts_with = "images")]
+    pub seed: u64,
+    /// Where to synthesize: cpu, flex, wgpu or cuda.
+    #[arg(long, default_value = "cpu", conflicts_with = "images")]
+    pub device: String,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub(super) fn eval(args: EvalArgs) -> Result<()> {
+    use crate::metrics;
+    let start = Instant::now();
+    if let Some(images) = &args.images {
+        let gaussian = |p: &Path| -> Result<metrics::Gaussian> {
+            let image = crate::exemplar::read_exemplar(p)?;
+            let in_file = |e: crate::Error| match e {
+                crate::Error::Input(m) => input_error!("{}: {m}", p.display()),
+                other => other,
+            };
+            let rgb = metrics::to_unit_rgb(&image.values, image.channels).map_err(in_file)?;
+            let features = metrics::InceptionStem::embedded()
+                .features(&rgb, image.height, image.width)
+                .map_err(in_file)?;
+            metrics::Gaussian::fit(&features).map_err(in_file)
+        };
+        let score = metrics::frechet_distance(&gaussian(&images[0])?, &gaussian(&images[1])?);
+        if args.json {
+            let out = serde_json::json!({
+                "metric": metrics::SIFID_NAME,
+                "sifid": score,
+                "a": images[0],
+                "b": images[1],
+            });
+            println!("{out}");
+        } else {
+            println!(
+                "SIFID {score:.4}  ({} vs {}; Keras InceptionV3 stem, not comparable with torchvision-based values)",
+                images[0].display(),
+                images[1].display()
+            );
+        }
+        return Ok(());
+    }
+    let exemplar_path = args
+        .exemplar
+        .as_deref()
+        .expect("clap requires --exemplar without --images");
+    let device: DeviceChoice = args.device.parse()?;
+    device.burn_device()?;
+    if args.samples == 0 {
+        return Err(input_error!("--samples 0: need at least one sample"));
+    }
+    let exemplar = crate::exemplar::read_exemplar(exemplar_path)?;
+    let model = choose_model(args.model.as_deref(), Path::new("."))?;
+    let report = metrics::evaluate_model(
+        &model.config,
+        &model.weights,
+        &exemplar,
+        args.samples,
+        args.seed,
+        device,
+    )
+    .map_err(|e| match e {
+        crate::Error::Input(m) => input_error!("{}: {m}", exemplar_path.display()),
+        other => other,
+    })?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).expect("the report serializes")
+        );
+        return Ok(());
+    }
+    eprintln!("model: {}", model.description);
+    print_report(&report);
+    eprintln!("evaluated in {:.2} s", start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// The report as text: SIFID, seam score and period, one line each.
+fn print_report(r: &crate::metrics::ModelReport) {
+    let fmt_period = |p: Option<f64>| p.map_or("none".to_string(), |v| format!("{v:.1}"));
+    println!(
+        "SIFID          {:.4} ± {:.4} over {} samples of {}x{} (seeds {}..{}; Keras InceptionV3 stem, not comparable with torchvision-based values)",
+        r.sifid.mean,
+        r.sifid.std,
+        r.sifid.values.len(),
+        r.width,
+        r.height,
+        r.seed,
+        r.seed + r.sifid.values.len() as u64 - 1
+    );
+    println!(
+        "seam score     {:.3} for --tile samples laid 2x2 (columns {:.3}, rows {:.3}); the exemplar laid 2x2: {:.3}. About 1 is seamless.",
+        r.seam_model_tile.overall,
+        r.seam_model_tile.columns,
+        r.seam_model_tile.rows,
+        r.seam_exemplar.overall
+    );
+    println!(
+        "period (px)    model {:.1} x {:.1} (rows x columns, from K); exemplar {} x {} (autocorrelation peak)",
+        r.period_model[0],
+        r.period_model[1],
+        fmt_period(r.period_exemplar[0]),
+        fmt_period(r.period_exemplar[1])
+    );
+}

@@ -1,0 +1,70 @@
+//! The `ipfn` command line: clap definitions, one file per subcommand. Each maps its flags onto
+//! library calls and prints what happened; policy (model choice, validation, the training loop)
+//! lives in the library.
+
+mod bench;
+mod eval;
+mod synth;
+mod tools;
+mod train;
+
+use clap::{Parser, Subcommand};
+
+use crate::error::Result;
+pub use bench::BenchArgs;
+pub use eval::EvalArgs;
+pub use synth::{Size, SynthArgs};
+pub use tools::{DrawArgs, ImportArgs, VoxelizeArgs};
+pub use train::TrainArgs;
+
+#[derive(Debug, Parser)]
+#[command(
+    name = "ipfn",
+    version,
+    about = "Implicit Periodic Field Network: learn a pattern from one exemplar, paint it at any size",
+    long_about = "Implicit Periodic Field Network (Chen et al., CVPR 2022).\n\n\
+        `ipfn train` learns a pattern from one exemplar (an image, or a set of material maps). \
+        `ipfn synth` paints new, varied, optionally seamless versions of it at any size, on the \
+        CPU or a GPU. `ipfn eval` scores a model (SIFID, seams, period); `ipfn bench` times this \
+        machine; `ipfn import` converts a generator trained by the authors' PyTorch code. With no \
+        model given, synth uses the most recent model in the working folder, else the shipped \
+        honeycomb model."
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Paint a sample of a trained pattern (PNG, EXR or NPY).
+    Synth(SynthArgs),
+    /// Learn a pattern from one exemplar (PNG, JPEG, EXR, or an SDF volume .npy): WGAN-GP,
+    /// checkpoints, previews.
+    Train(Box<TrainArgs>),
+    /// Turn a closed mesh (.obj or .ply) into a signed-distance volume (.npy) to train on.
+    Voxelize(VoxelizeArgs),
+    /// Convert an authors' PyTorch generator (netG.pth) into an ipfn model file.
+    Import(ImportArgs),
+    /// Draw a procedural exemplar: bricks, weave, stripes, graded (PNG), material (a map set) or
+    /// gyroid (an SDF volume).
+    Draw(DrawArgs),
+    /// Score a model against its exemplar (SIFID, seam score, period), or two images (SIFID).
+    Eval(EvalArgs),
+    /// Time synthesis and training on this machine's devices, beside floors measured now.
+    Bench(BenchArgs),
+}
+
+/// Parses the process arguments and runs the command.
+pub fn run() -> Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Synth(args) => synth::synth(args),
+        Command::Train(args) => train::train(*args),
+        Command::Import(args) => tools::import(args),
+        Command::Draw(args) => tools::draw(args),
+        Command::Voxelize(args) => tools::voxelize(args),
+        Command::Eval(args) => eval::eval(args),
+        Command::Bench(args) => bench::bench(args),
+    }
+}

@@ -1,0 +1,186 @@
+//! `ipfn train`: start or resume a run, show progress, stop cleanly on Ctrl-C.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use clap::Args;
+
+use crate::device::DeviceChoice;
+use crate::error::Result;
+use crate::input_error;
+use crate::maps::MapFiles;
+use crate::train::{ExemplarSource, RunEnd, TrainConfig, TrainOverrides, Trainer, default_run_dir};
+
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// The exemplar: PNG (8/16-bit), JPEG or EXR; gray, RGB or RGBA (alpha is learned as a
+    /// channel). Not needed with --resume.
+    pub exemplar: Option<PathBuf>,
+    /// TOML config (see configs/); flags below override it. Default: configs/default.toml's values.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Run folder. Default: runs/<exemplar name>.
+    #[arg(long, short, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Continue the run in DIR from its latest.ipfn, exactly where it stopped.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["exemplar", "config", "out", "maps"])]
+    pub resume: Option<PathBuf>,
+    /// A material map set instead of one image: aligned maps of one size and bit depth
+    /// (albedo.png,normal.png,roughness.png,height.png), learned together; synth writes one
+    /// file per map, named after these files.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "FILES",
+        conflicts_with = "exemplar"
+    )]
+    pub maps: Option<Vec<PathBuf>>,
+    /// Which maps are normal maps (renormalised to unit length on output), by file stem.
+    /// Default: the maps whose name contains "normal"; pass "" for none.
+    #[arg(long, value_delimiter = ',', value_name = "NAMES", requires = "maps")]
+    pub normal_maps: Option<Vec<String>>,
+    /// Resample maps of another size to the first map's size, and accept mixed bit depths.
+    #[arg(long, requires = "maps")]
+    pub resize_maps: bool,
+    /// Where to train: flex (CPU), wgpu (GPU) or cuda (NVIDIA GPU; a build with --features cuda).
+    #[arg(long, default_value = "flex")]
+    pub device: String,
+    /// Print nothing but errors.
+    #[arg(long, short)]
+    pub quiet: bool,
+    #[command(flatten)]
+    pub overrides: TrainOverrides,
+}
+
+pub(super) fn train(args: TrainArgs) -> Result<()> {
+    let device = args.device.parse::<DeviceChoice>()?.training_device()?;
+    let say = |s: String| {
+        if !args.quiet {
+            eprintln!("{s}");
+        }
+    };
+    let mut trainer = match &args.resume {
+        Some(dir) => {
+            let t = Trainer::resume_with(dir, &args.overrides, &device)?;
+            say(format!(
+                "resuming {} at iteration {}",
+                dir.display(),
+                t.iteration
+            ));
+            t
+        }
+        None => {
+            let source: ExemplarSource = match (&args.exemplar, &args.maps) {
+                (Some(image), _) => image.into(),
+                (None, Some(files)) => {
+                    MapFiles::new(files.clone(), args.normal_maps.as_deref(), args.resize_maps)?
+                        .into()
+                }
+                (None, None) => {
+                    return Err(input_error!(
+                        "no exemplar given: `ipfn train IMAGE` (or `--maps A.png,B.png,...`) starts a run, `ipfn train --resume runs/NAME` continues one"
+                    ));
+                }
+            };
+            let mut config = match &args.config {
+                Some(path) => TrainConfig::from_file(path)?,
+                None => TrainConfig::default(),
+            };
+            args.overrides.apply(&mut config);
+            let run_dir = args
+                .out
+                .clone()
+                .unwrap_or_else(|| default_run_dir(source.main_path()));
+            let trainer = Trainer::start(config, source, &run_dir, &device)?;
+            if let Some(maps) = trainer.maps() {
+                say(format!("map set: {}", maps.describe()));
+            }
+            trainer
+        }
+    };
+    let total = trainer.config.iterations;
+    say(format!(
+        "training {} -> {} ({} iterations, batch {}, crop {}, {})",
+        trainer.run_dir().display(),
+        trainer.run_dir().join("latest.ipfn").display(),
+        total,
+        trainer.config.batch,
+        trainer.config.crop,
+        args.device
+    ));
+
+    let stop = stop_on_ctrl_c();
+    let bar = iteration_bar(!args.quiet, total, trainer.iteration);
+    let (start, first, log_every) = (Instant::now(), trainer.iteration, trainer.config.log_every);
+    let end = trainer.run(stop, |_, stats| {
+        let it = stats.iteration;
+        let line = stats.summary();
+        match &bar {
+            Some(bar) => {
+                bar.set_position(it);
+                bar.set_message(line);
+            }
+            None if !args.quiet && (it.is_multiple_of(log_every) || it == total) => {
+                eprintln!(
+                    "iter {it}/{total}  {line}  {:.3} it/s",
+                    stats.iterations_per_second
+                );
+            }
+            None => {}
+        }
+    })?;
+    let latest = trainer.run_dir().join("latest.ipfn");
+    if end == RunEnd::Stopped {
+        if let Some(bar) = &bar {
+            bar.abandon();
+        }
+        return Err(crate::Error::Interrupted(format!(
+            "interrupted at iteration {}; saved {}; continue with `ipfn train --resume {}`",
+            trainer.iteration,
+            latest.display(),
+            trainer.run_dir().display()
+        )));
+    }
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    say(format!(
+        "trained {} iterations in {:.1} s; model: {} (ipfn synth uses it by default here)",
+        trainer.iteration - first,
+        start.elapsed().as_secs_f64(),
+        latest.display()
+    ));
+    Ok(())
+}
+
+/// The flag Ctrl-C raises: the run then ends after its current iteration and a checkpoint. A
+/// second Ctrl-C exits at once (`latest.ipfn` is intact: it is written atomically).
+fn stop_on_ctrl_c() -> &'static AtomicBool {
+    static STOP: AtomicBool = AtomicBool::new(false);
+    let _ = ctrlc::set_handler(|| {
+        if STOP.swap(true, Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+        eprintln!(
+            "\ninterrupted: finishing this iteration and saving a checkpoint (Ctrl-C again to quit at once)"
+        );
+    });
+    &STOP
+}
+
+/// A progress bar over `total` iterations starting at `position`, on a terminal when `show`.
+fn iteration_bar(show: bool, total: u64, position: u64) -> Option<indicatif::ProgressBar> {
+    (show && std::io::stderr().is_terminal()).then(|| {
+        let bar = indicatif::ProgressBar::new(total);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:30} {pos}/{len} it  {per_sec}  eta {eta}  {msg}",
+            )
+            .expect("valid progress template"),
+        );
+        bar.set_position(position);
+        bar
+    })
+}

@@ -1,0 +1,265 @@
+//! Finite-difference checks of the exact gradient penalty (DESIGN.md §2), one body run on 2 and
+//! 3 axes. Any change to the critic must keep these passing. D is piecewise linear, so
+//! differences are exact within a linear region: steps that flip a LeakyReLU mask are detected
+//! and skipped.
+use super::*;
+use crate::checkpoint::{Checkpoint, read_module, write_module};
+use crate::latent::derive_seed;
+
+/// One critic under test and the tolerances of its checks.
+struct Case {
+    axes: usize,
+    channels: usize,
+    widths: Vec<usize>,
+    /// Seed of the weights' values.
+    weight_seed: u64,
+    /// Every this-many-th input coordinate is checked.
+    input_stride: usize,
+    min_inputs_checked: usize,
+    /// Step of the weight differences: the 3D penalty is about 22, whose f32 ulp is 2e-6, so
+    /// central differences carry about ulp / h of rounding noise; 1e-2 keeps it near 2e-4 while
+    /// the truncation error stays O(h^2).
+    weight_step: f32,
+    min_weights_checked: usize,
+    /// Also check the head's weight (the 2D case always did).
+    head: bool,
+}
+
+fn image_case() -> Case {
+    Case {
+        axes: 2,
+        channels: 3,
+        widths: vec![4, 6, 8, 8],
+        weight_seed: 100,
+        input_stride: 37,
+        min_inputs_checked: 31,
+        weight_step: 2e-3,
+        min_weights_checked: 20,
+        head: true,
+    }
+}
+
+fn volume_case() -> Case {
+    Case {
+        axes: 3,
+        channels: 1,
+        widths: vec![3, 4, 5, 6],
+        weight_seed: 200,
+        input_stride: 211,
+        min_inputs_checked: 21,
+        weight_step: 1e-2,
+        min_weights_checked: 11,
+        head: false,
+    }
+}
+
+impl Case {
+    fn shape(&self) -> [usize; 5] {
+        let depth = if self.axes == 3 { 16 } else { 1 };
+        [2, self.channels, depth, 16, 16]
+    }
+
+    fn critic(&self, device: &Device) -> Critic {
+        let critic = CriticConfig::new(self.channels, 16)
+            .with_axes(self.axes)
+            .with_widths(self.widths.clone())
+            .init(device);
+        let mut ckpt = Checkpoint::new();
+        write_module(&critic, "c", &mut ckpt);
+        for (i, t) in ckpt.tensors.values_mut().enumerate() {
+            t.values = values(t.values.len(), self.weight_seed + i as u64, 0.4);
+        }
+        read_module(critic, "c", &ckpt).unwrap()
+    }
+
+    fn input(&self, seed: u64, device: &Device) -> Tensor<5> {
+        let shape = self.shape();
+        Tensor::from_data(
+            TensorData::new(values(shape.iter().product(), seed, 1.0), shape),
+            device,
+        )
+    }
+}
+
+fn values(n: usize, seed: u64, scale: f32) -> Vec<f32> {
+    (0..n as u64)
+        .map(|i| ((derive_seed(seed, &[i]) >> 40) as f32 / 16_777_216.0 * 2.0 - 1.0) * scale)
+        .collect()
+}
+
+fn same_masks(a: &[Tensor<5>], b: &[Tensor<5>]) -> bool {
+    a.iter()
+        .zip(b)
+        .all(|(x, y)| x.clone().equal(y.clone()).all().into_scalar::<bool>())
+}
+
+fn input_gradient_matches_finite_differences(case: Case) {
+    let device = Device::flex();
+    let critic = case.critic(&device);
+    let x = case.input(1, &device);
+    let analytic = critic
+        .input_gradient(x.clone())
+        .try_into_vec_as::<f32>()
+        .unwrap();
+    let base = x.try_into_vec_as::<f32>().unwrap();
+    let masks = critic.activation_masks(case.input(1, &device));
+    let score = |v: &[f32]| -> (f32, Vec<Tensor<5>>) {
+        let t = Tensor::<5>::from_data(TensorData::new(v.to_vec(), case.shape()), &device);
+        (
+            critic.forward(t.clone()).sum().into_scalar::<f32>(),
+            critic.activation_masks(t),
+        )
+    };
+    let h = 1e-2;
+    let (mut checked, mut worst) = (0, 0f32);
+    for k in (0..base.len()).step_by(case.input_stride) {
+        let (mut plus, mut minus) = (base.clone(), base.clone());
+        plus[k] += h;
+        minus[k] -= h;
+        let ((dp, mp), (dm, mm)) = (score(&plus), score(&minus));
+        if !same_masks(&mp, &masks) || !same_masks(&mm, &masks) {
+            continue;
+        }
+        let fd = (dp - dm) / (2.0 * h);
+        let err = (fd - analytic[k]).abs() / analytic[k].abs().max(1e-2);
+        worst = worst.max(err);
+        checked += 1;
+    }
+    eprintln!("{}D dD/dx: checked {checked}, worst {worst:e}", case.axes);
+    assert!(
+        checked >= case.min_inputs_checked,
+        "too few coordinates checked ({checked})"
+    );
+    assert!(
+        worst < 5e-3,
+        "{}D dD/dx differs from finite differences by {worst} (relative)",
+        case.axes
+    );
+}
+
+/// The analytic gradient of the penalty with respect to every checked weight tensor.
+fn penalty_gradients(case: &Case, critic: &Critic, penalty: Tensor<1>) -> Checkpoint {
+    let grads = penalty.backward();
+    let mut analytic = Checkpoint::new();
+    let mut add = |name: String, g: Tensor<5>| {
+        let shape = g.dims().to_vec();
+        analytic.insert(name, shape, g.try_into_vec_as::<f32>().unwrap());
+    };
+    for (i, conv) in critic.convs.iter().enumerate() {
+        let g = conv
+            .weight
+            .val()
+            .grad(&grads)
+            .expect("conv weight has a gradient");
+        add(format!("c.convs.{i}.weight"), g);
+    }
+    if case.head {
+        let g = critic
+            .head
+            .weight
+            .val()
+            .grad(&grads)
+            .expect("head weight has a gradient");
+        let [i, o] = g.dims();
+        add("c.head.weight".into(), g.reshape([i, o, 1, 1, 1]));
+    }
+    analytic
+}
+
+fn penalty_weight_gradient_matches_finite_differences(case: Case) {
+    let device = Device::flex().autodiff();
+    let critic = case.critic(&device);
+    let (real, fake) = (case.input(2, &device), case.input(3, &device));
+    let alpha = Tensor::<1>::from_data(TensorData::new(vec![0.3f32, 0.8], [2]), &device);
+    let penalty = critic.gradient_penalty(real.clone(), fake.clone(), alpha.clone(), 10.0);
+    let analytic = penalty_gradients(&case, &critic, penalty);
+
+    let mut weights = Checkpoint::new();
+    write_module(&critic.valid(), "c", &mut weights);
+    let x_hat_masks = |c: &Critic| {
+        let a = alpha.clone().inner().reshape([2, 1, 1, 1, 1]);
+        c.activation_masks(
+            real.clone().inner() * a.clone() + fake.clone().inner() * (a.neg() + 1.0),
+        )
+    };
+    let base_masks = x_hat_masks(&critic.valid());
+    let evaluate = |ckpt: &Checkpoint| -> (f32, Vec<Tensor<5>>) {
+        let c = read_module(critic.valid(), "c", ckpt).unwrap();
+        let p = c.gradient_penalty(
+            real.clone().inner(),
+            fake.clone().inner(),
+            alpha.clone().inner(),
+            10.0,
+        );
+        (p.into_scalar::<f32>(), x_hat_masks(&c))
+    };
+    let h = case.weight_step;
+    let (mut checked, mut worst) = (0, 0f32);
+    for (name, grad) in &analytic.tensors {
+        for k in (0..grad.values.len()).step_by(grad.values.len() / 6 + 1) {
+            let (mut plus, mut minus) = (weights.clone(), weights.clone());
+            plus.tensors.get_mut(name).unwrap().values[k] += h;
+            minus.tensors.get_mut(name).unwrap().values[k] -= h;
+            let ((pp, mp), (pm, mm)) = (evaluate(&plus), evaluate(&minus));
+            if !same_masks(&mp, &base_masks) || !same_masks(&mm, &base_masks) {
+                continue;
+            }
+            let fd = (pp - pm) / (2.0 * h);
+            let a = grad.values[k];
+            let err = (fd - a).abs() / a.abs().max(1e-1);
+            worst = worst.max(err);
+            checked += 1;
+        }
+    }
+    eprintln!("{}D dP/dW: checked {checked}, worst {worst:e}", case.axes);
+    assert!(
+        checked >= case.min_weights_checked,
+        "too few weights checked ({checked})"
+    );
+    assert!(
+        worst < 1e-2,
+        "{}D d(penalty)/dW differs from finite differences by {worst} (relative)",
+        case.axes
+    );
+}
+
+#[test]
+fn input_gradient_matches_finite_differences_2d() {
+    input_gradient_matches_finite_differences(image_case());
+}
+
+#[test]
+fn input_gradient_matches_finite_differences_3d() {
+    input_gradient_matches_finite_differences(volume_case());
+}
+
+#[test]
+fn penalty_weight_gradient_matches_finite_differences_2d() {
+    penalty_weight_gradient_matches_finite_differences(image_case());
+}
+
+#[test]
+fn penalty_weight_gradient_matches_finite_differences_3d() {
+    penalty_weight_gradient_matches_finite_differences(volume_case());
+}
+
+#[test]
+fn a_2d_critic_reads_weights_stored_without_the_depth_axis() {
+    // Run folders written before the critic was one type hold [out, in, k, k] weights.
+    let device = Device::flex();
+    let critic = image_case().critic(&device);
+    let mut old = Checkpoint::new();
+    write_module(&critic, "c", &mut old);
+    for t in old.tensors.values_mut() {
+        if t.shape.len() == 5 {
+            t.shape.remove(2);
+        }
+    }
+    let read = read_module(image_case().critic(&device), "c", &old).unwrap();
+    let x = image_case().input(4, &device);
+    let (a, b) = (critic.forward(x.clone()), read.forward(x));
+    assert_eq!(
+        a.try_into_vec_as::<f32>().unwrap(),
+        b.try_into_vec_as::<f32>().unwrap()
+    );
+}

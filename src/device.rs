@@ -1,0 +1,182 @@
+//! Where the generator runs: the device a user names (`--device cpu|flex|wgpu|cuda`), the probes
+//! that turn a missing GPU or driver into a one-line error, and the chunk sizes per device.
+
+use std::str::FromStr;
+
+use burn::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::input_error;
+
+/// Where the generator runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DeviceChoice {
+    /// The fused CPU evaluator (fastest on a CPU).
+    Cpu,
+    /// burn's flex CPU backend (the same math through the framework; for checks and training).
+    Flex,
+    /// burn's wgpu backend (Vulkan, Metal, DX12; lavapipe without a GPU).
+    Wgpu,
+    /// burn's CUDA backend (NVIDIA GPUs); needs a build with `--features cuda`.
+    Cuda,
+}
+
+impl FromStr for DeviceChoice {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "cpu" => Ok(Self::Cpu),
+            "flex" => Ok(Self::Flex),
+            "wgpu" | "gpu" => Ok(Self::Wgpu),
+            "cuda" => Ok(Self::Cuda),
+            other => Err(input_error!(
+                "unknown device '{other}'; use cpu, flex, wgpu or cuda"
+            )),
+        }
+    }
+}
+
+impl DeviceChoice {
+    /// The burn device for this choice (`None` for the fused CPU path). wgpu is probed here so a
+    /// machine without an adapter gets an error instead of a panic on first use.
+    pub fn burn_device(&self) -> Result<Option<Device>> {
+        match self {
+            Self::Cpu => Ok(None),
+            Self::Flex => Ok(Some(Device::flex())),
+            Self::Wgpu => wgpu_device().map(Some),
+            Self::Cuda => cuda_device().map(Some),
+        }
+    }
+
+    /// The device training uses: flex stands in for the fused CPU path, which has no backward.
+    pub fn training_device(&self) -> Result<Device> {
+        Ok(self.burn_device()?.unwrap_or_else(Device::flex))
+    }
+}
+
+/// Whether every wgpu adapter on this machine is a software one (lavapipe, WARP): wgpu then
+/// works but runs on the CPU, far slower than `--device cpu`.
+#[cfg(feature = "wgpu")]
+pub fn wgpu_is_software() -> bool {
+    use burn::tensor::wgpu::wgpu;
+    let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle();
+    descriptor.backends = wgpu::Backends::PRIMARY;
+    let instance = wgpu::Instance::new(descriptor);
+    let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::PRIMARY));
+    !adapters.is_empty()
+        && adapters
+            .iter()
+            .all(|a| a.get_info().device_type == wgpu::DeviceType::Cpu)
+}
+
+/// A build without the `wgpu` feature has no wgpu adapter, software or not.
+#[cfg(not(feature = "wgpu"))]
+pub fn wgpu_is_software() -> bool {
+    false
+}
+
+/// The CUDA device, probed once per process with a one-element round trip, so a machine without
+/// a driver or GPU gets an error instead of a panic on first use.
+#[cfg(feature = "cuda")]
+pub fn cuda_device() -> Result<Device> {
+    static DEVICE: std::sync::OnceLock<std::result::Result<Device, String>> =
+        std::sync::OnceLock::new();
+    DEVICE
+        .get_or_init(|| {
+            // The first panic message from any thread (the CUDA runtime initialises on a
+            // server thread, whose panic reaches this one only as a closed channel).
+            static FIRST_PANIC: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
+            let hook = std::panic::take_hook();
+            std::panic::set_hook(Box::new(|info| {
+                let message = info
+                    .payload()
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| info.payload().downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_else(|| "CUDA initialisation failed".into());
+                let mut first = FIRST_PANIC.lock().unwrap_or_else(|e| e.into_inner());
+                first.get_or_insert(message);
+            }));
+            let probe = std::panic::catch_unwind(|| {
+                let device = Device::cuda(0);
+                let one = Tensor::<1>::from_floats([1.0f32].as_slice(), &device);
+                one.try_into_vec_as::<f32>().map(|_| device)
+            });
+            std::panic::set_hook(hook);
+            let first = FIRST_PANIC
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .take()
+                .map(|m| m.split_whitespace().collect::<Vec<_>>().join(" "));
+            match probe {
+                Ok(Ok(device)) => Ok(device),
+                Ok(Err(e)) => Err(first.unwrap_or_else(|| format!("{e:?}"))),
+                Err(_) => Err(first.unwrap_or_else(|| "CUDA initialisation failed".into())),
+            }
+        })
+        .clone()
+        .map_err(|e| {
+            input_error!("--device cuda: no usable CUDA device ({e}); check the NVIDIA driver (nvidia-smi) or use --device wgpu or cpu")
+        })
+}
+
+/// Without the `cuda` feature, `--device cuda` says how to get it.
+#[cfg(not(feature = "cuda"))]
+pub fn cuda_device() -> Result<Device> {
+    Err(input_error!(
+        "--device cuda: this ipfn was built without CUDA; reinstall with `cargo install --path . --features cuda`, or use --device wgpu"
+    ))
+}
+
+/// Without the `wgpu` feature, `--device wgpu` says how to get it.
+#[cfg(not(feature = "wgpu"))]
+pub fn wgpu_device() -> Result<Device> {
+    Err(input_error!(
+        "--device wgpu: this ipfn was built without wgpu; reinstall with `cargo install --path .` (wgpu is a default feature), or use --device cpu"
+    ))
+}
+
+/// The wgpu device, initialised once per process.
+#[cfg(feature = "wgpu")]
+pub fn wgpu_device() -> Result<Device> {
+    static DEVICE: std::sync::OnceLock<std::result::Result<Device, String>> =
+        std::sync::OnceLock::new();
+    DEVICE
+        .get_or_init(|| {
+            Device::wgpu_options()
+                .init()
+                .map_err(|e| e.to_string().split_whitespace().collect::<Vec<_>>().join(" "))
+        })
+        .clone()
+        .map_err(|e| {
+            input_error!("--device wgpu: no usable GPU adapter ({e}); install Vulkan drivers (e.g. mesa-vulkan-drivers) or use --device cpu")
+        })
+}
+
+/// Whether GPU synthesis uses the generator kernel ([`KernelGenerator`]) where it can:
+/// `IPFN_GPU_KERNEL=0` selects the burn generator instead (for comparison in `ipfn bench`).
+pub fn gpu_kernel_enabled() -> bool {
+    std::env::var("IPFN_GPU_KERNEL").map_or(true, |v| v != "0")
+}
+
+/// Points per burn forward pass on a GPU: bounds device memory (`width` activations per point)
+/// while keeping launches few. `IPFN_GPU_CHUNK_POINTS` overrides it (for tuning with
+/// `ipfn bench`).
+pub const GPU_CHUNK_POINTS: usize = 1 << 16;
+/// Points per burn forward pass on flex: activations stay in cache (`ipfn bench`: 1024² takes
+/// half the time it takes with 65,536-point chunks).
+pub const FLEX_CHUNK_POINTS: usize = 1 << 12;
+
+impl DeviceChoice {
+    /// Points per burn forward pass on this device.
+    pub fn chunk_points(&self) -> usize {
+        match self {
+            Self::Cpu | Self::Flex => FLEX_CHUNK_POINTS,
+            Self::Wgpu | Self::Cuda => std::env::var("IPFN_GPU_CHUNK_POINTS")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .filter(|&n: &usize| n > 0)
+                .unwrap_or(GPU_CHUNK_POINTS),
+        }
+    }
+}

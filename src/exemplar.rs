@@ -1,0 +1,230 @@
+//! The exemplar a run learns from: an image (PNG, JPEG, EXR) or a signed-distance volume
+//! (`.npy`), as values in [-1, 1], row-major `[depth, height, width, channels]` (depth 1 for an
+//! image).
+
+use std::path::Path;
+
+use crate::error::Result;
+use crate::input_error;
+use crate::io::{extension, read_npy};
+
+/// An exemplar image: values scaled to [-1, 1], row-major `[height, width, channels]`.
+///
+/// Channels are kept as the file has them: gray (1), gray + alpha (2), RGB (3), RGBA (4). Alpha
+/// is learned as one more channel, so synthesized output carries alpha too (useful for cut-outs
+/// such as foliage); flatten the image first if alpha holds nothing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Exemplar {
+    pub width: usize,
+    pub height: usize,
+    /// 1 for an image; the slices of a volume exemplar (`values` is then `[depth, height,
+    /// width, channels]`).
+    pub depth: usize,
+    pub channels: usize,
+    pub values: Vec<f32>,
+}
+
+impl Exemplar {
+    /// From values in [0, 1], `[height, width, channels]`.
+    pub fn from_unit(width: usize, height: usize, channels: usize, unit: &[f32]) -> Self {
+        assert_eq!(unit.len(), width * height * channels);
+        Self {
+            width,
+            height,
+            depth: 1,
+            channels,
+            values: unit.iter().map(|v| v.clamp(0.0, 1.0) * 2.0 - 1.0).collect(),
+        }
+    }
+
+    /// Resamples to `width x height` with a Lanczos-3 filter (scaled to the output's footprint
+    /// when shrinking, so it anti-aliases).
+    pub fn resized(&self, width: usize, height: usize) -> Self {
+        // The image crate's float resampling clamps to [0, 1], so resample unit values.
+        let c = self.channels;
+        let mut rgba = image::Rgba32FImage::new(self.width as u32, self.height as u32);
+        for (i, px) in rgba.pixels_mut().enumerate() {
+            let mut v = [0f32; 4];
+            for (k, slot) in v.iter_mut().enumerate().take(c) {
+                *slot = (self.values[i * c + k] + 1.0) * 0.5;
+            }
+            *px = image::Rgba(v);
+        }
+        let out = image::imageops::resize(
+            &rgba,
+            width as u32,
+            height as u32,
+            image::imageops::FilterType::Lanczos3,
+        );
+        let unit: Vec<f32> = out.pixels().flat_map(|p| p.0[..c].to_vec()).collect();
+        Self::from_unit(width, height, c, &unit)
+    }
+
+    /// The exemplar's extent over its last `axes` axes, in array order: `[height, width]` or
+    /// `[depth, height, width]`.
+    pub fn shape(&self, axes: usize) -> Vec<usize> {
+        let all = [self.depth, self.height, self.width];
+        all[3 - axes..].to_vec()
+    }
+
+    /// A 64-bit fingerprint of the pixels (resume checks that the exemplar did not change).
+    pub fn fingerprint(&self) -> u64 {
+        let mut h = crate::latent::mix64(
+            (self.width as u64) << 32 ^ self.height as u64 ^ (self.channels as u64) << 60,
+        );
+        if self.depth > 1 {
+            h = crate::latent::mix64(h ^ self.depth as u64);
+        }
+        for v in &self.values {
+            h = crate::latent::mix64(h ^ v.to_bits() as u64);
+        }
+        h
+    }
+}
+
+/// Reads a PNG (8/16-bit), JPEG or EXR exemplar.
+pub fn read_exemplar(path: &Path) -> Result<Exemplar> {
+    read_exemplar_with_bits(path).map(|(exemplar, _)| exemplar)
+}
+
+/// Reads an exemplar and the bits per channel of its file: 8 or 16 for PNG and JPEG (values
+/// keep that precision as f32), 32 for EXR (float).
+pub fn read_exemplar_with_bits(path: &Path) -> Result<(Exemplar, u8)> {
+    if !path.exists() {
+        return Err(input_error!("{}: no such file", path.display()));
+    }
+    let ext = extension(path);
+    if ext == "exr" {
+        return read_exr_exemplar(path).map(|e| (e, 32));
+    }
+    let image = image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|e| input_error!("{}: cannot read: {e}", path.display()))?
+        .decode()
+        .map_err(|e| input_error!("{}: not a readable PNG or JPEG image ({e})", path.display()))?;
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    let bits = match image.color().bytes_per_pixel() / image.color().channel_count() {
+        1 => 8,
+        2 => 16,
+        _ => 32,
+    };
+    use image::ColorType::*;
+    let (channels, unit): (usize, Vec<f32>) = match image.color() {
+        L8 | L16 => (1, image.to_luma32f().into_raw()),
+        La8 | La16 => (2, image.to_luma_alpha32f().into_raw()),
+        Rgb8 | Rgb16 | Rgb32F => (3, image.to_rgb32f().into_raw()),
+        Rgba8 | Rgba16 | Rgba32F => (4, image.to_rgba32f().into_raw()),
+        other => {
+            return Err(input_error!(
+                "{}: unsupported pixel format {other:?}; use gray, RGB or RGBA",
+                path.display()
+            ));
+        }
+    };
+    if w == 0 || h == 0 {
+        return Err(input_error!("{}: the image is empty", path.display()));
+    }
+    Ok((Exemplar::from_unit(w, h, channels, &unit), bits))
+}
+
+/// EXR exemplars: channels Y (gray) or R, G, B, optionally A; values expected in [0, 1]
+/// (outside is clipped).
+fn read_exr_exemplar(path: &Path) -> Result<Exemplar> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| input_error!("{}: not a readable EXR image ({e})", path.display()))?;
+    let layer = image.layer_data;
+    let (w, h) = (layer.size.0, layer.size.1);
+    let find = |name: &str| {
+        layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+    };
+    let order: Vec<&str> = if find("R").is_some() && find("G").is_some() && find("B").is_some() {
+        vec!["R", "G", "B", "A"]
+    } else if find("Y").is_some() {
+        vec!["Y", "A"]
+    } else {
+        return Err(input_error!(
+            "{}: EXR needs channels R, G, B (and A) or Y",
+            path.display()
+        ));
+    };
+    let chans: Vec<_> = order.iter().filter_map(|n| find(n)).collect();
+    let c = chans.len();
+    let mut unit = vec![0f32; w * h * c];
+    for (k, ch) in chans.iter().enumerate() {
+        for i in 0..w * h {
+            unit[i * c + k] = ch.sample_data.value_by_flat_index(i).to_f32();
+        }
+    }
+    Ok(Exemplar::from_unit(w, h, c, &unit))
+}
+
+/// A volume of values, row-major `[depth, height, width, channels]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Volume {
+    pub depth: usize,
+    pub height: usize,
+    pub width: usize,
+    pub channels: usize,
+    pub values: Vec<f32>,
+}
+
+/// Reads a signed-distance volume (`.npy`, float, `D x H x W` or `D x H x W x 1`) as the authors
+/// prepare one: scaled by `sdf_scale` and clamped to [-1, 1] (a truncated SDF).
+pub fn read_sdf_volume(path: &Path, sdf_scale: f32) -> Result<Volume> {
+    if !path.exists() {
+        return Err(input_error!("{}: no such file", path.display()));
+    }
+    let (shape, values) = read_npy(path)?;
+    let [depth, height, width] = match shape[..] {
+        [d, h, w] | [d, h, w, 1] => [d, h, w],
+        _ => {
+            return Err(input_error!(
+                "{}: a volume must be a 3D float array (D x H x W), this one has shape {shape:?}",
+                path.display()
+            ));
+        }
+    };
+    if depth == 0 || height == 0 || width == 0 {
+        return Err(input_error!("{}: the volume is empty", path.display()));
+    }
+    if values.iter().any(|v| !v.is_finite()) {
+        return Err(input_error!(
+            "{}: the volume holds NaN or infinite values",
+            path.display()
+        ));
+    }
+    Ok(Volume {
+        depth,
+        height,
+        width,
+        channels: 1,
+        values: values
+            .iter()
+            .map(|v| (v * sdf_scale).clamp(-1.0, 1.0))
+            .collect(),
+    })
+}
+
+impl Volume {
+    /// The volume as a training exemplar (`[depth, height, width, 1]`, values in [-1, 1]).
+    pub fn into_exemplar(self) -> Exemplar {
+        Exemplar {
+            width: self.width,
+            height: self.height,
+            depth: self.depth,
+            channels: self.channels,
+            values: self.values,
+        }
+    }
+}

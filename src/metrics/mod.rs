@@ -1,0 +1,209 @@
+//! Evaluation: SIFID, the seam score of tiles, and the dominant period of a pattern.
+//!
+//! **SIFID** (Shaham et al., SinGAN, 2019) is the Fréchet distance between the Gaussians fitted
+//! to the deep features of two images, where every spatial position of the feature map is one
+//! sample. Following SinGAN's `SIFID/sifid_score.py`, the features are InceptionV3's stem up to
+//! `Conv2d_4a_3x3` (192 channels, before the second max-pool), the input is in [0, 1] mapped to
+//! `2x - 1`, and nothing is resized.
+//!
+//! The weights are Keras' ImageNet InceptionV3 (from the npm package `nsfwjs@4.4.0`, converted
+//! by `tools/inception-stem/convert.js`; see `assets/README.md`), not torchvision's, so absolute
+//! values are **not comparable** with papers that used torchvision's weights (SinGAN, IPFN's
+//! Table 1). We call the metric "SIFID (Keras InceptionV3)" wherever we print it.
+//!
+//! The **seam score** of a tile is the mean gradient magnitude across its wrap seams (last
+//! column to first, last row to first) over the mean gradient magnitude of the lines beside the
+//! seams, inside the tile: about 1 for a seamless tile, larger where the wrap shows.
+//!
+//! The **dominant period** of an image along an axis is the lag of the first strong peak of its
+//! autocorrelation along that axis, past the central lobe.
+
+mod sifid;
+mod tiles;
+
+pub use sifid::*;
+pub use tiles::*;
+
+use crate::error::Result;
+use crate::input_error;
+
+/// Mean and sample standard deviation of some values.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Summary {
+    pub mean: f64,
+    pub std: f64,
+    pub values: Vec<f64>,
+}
+
+impl Summary {
+    pub fn of(values: Vec<f64>) -> Self {
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        let std = if values.len() > 1 {
+            (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+        } else {
+            0.0
+        };
+        Self { mean, std, values }
+    }
+}
+
+/// The name we print for the metric, so no one compares it with torchvision-based SIFIDs.
+pub const SIFID_NAME: &str = "SIFID (Keras ImageNet InceptionV3 stem; not comparable with torchvision-based values such as the paper's)";
+
+/// What `ipfn eval --model M --exemplar X` reports.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ModelReport {
+    pub metric: &'static str,
+    /// SIFID of samples (seeds `seed..seed + samples`, at the exemplar's size) to the exemplar.
+    pub sifid: Summary,
+    /// Seam score of `--tile` samples of the exemplar's size (one per seed), laid 2x2.
+    pub seam_model_tile: SeamScore,
+    /// Seam score of the exemplar itself laid 2x2, for comparison.
+    pub seam_exemplar: SeamScore,
+    /// The model's period (octave 0 of the encoding, `|K| * crop` pixels): rows, columns.
+    pub period_model: [f64; 2],
+    /// The exemplar's dominant period from its autocorrelation: rows, columns.
+    pub period_exemplar: [Option<f64>; 2],
+    pub width: usize,
+    pub height: usize,
+    pub seed: u64,
+}
+
+/// Evaluates a model against its exemplar (values in [-1, 1], `[h, w, c]`).
+pub fn evaluate_model(
+    config: &crate::generator::GeneratorConfig,
+    weights: &crate::generator::GeneratorWeights,
+    exemplar: &crate::exemplar::Exemplar,
+    samples: usize,
+    seed: u64,
+    device: crate::device::DeviceChoice,
+) -> Result<ModelReport> {
+    use crate::synth::Synth;
+    if samples == 0 {
+        return Err(input_error!("--samples 0: need at least one sample"));
+    }
+    if exemplar.channels != config.channels {
+        return Err(input_error!(
+            "the exemplar has {} channels but the model paints {}; evaluate a model with the exemplar it was trained on",
+            exemplar.channels,
+            config.channels
+        ));
+    }
+    let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
+    let stem = InceptionStem::embedded();
+    let real = Gaussian::fit(&stem.features(&to_unit_rgb(&exemplar.values, c)?, h, w)?)?;
+    let mut sifids = Vec::with_capacity(samples);
+    for s in 0..samples as u64 {
+        let painter = Synth::new(config.clone(), weights.clone())
+            .seed(seed.wrapping_add(s))
+            .device(device)
+            .painter()?;
+        let fake = painter.render(&[0, 0], &[h, w]);
+        let fake = Gaussian::fit(&stem.features(&to_unit_rgb(&fake, c)?, h, w)?)?;
+        sifids.push(frechet_distance(&real, &fake));
+    }
+    // One --tile sample per seed, each cut at another phase of the pattern (an offset within
+    // the tile's period keeps it a tile), so the seam score does not measure one phase.
+    let mut tiles = Vec::with_capacity(samples);
+    for s in 0..samples as u64 {
+        let golden = |n: usize, k: u64| ((k as f64 * 0.618_033_988_75).fract() * n as f64) as i64;
+        let painter = Synth::new(config.clone(), weights.clone())
+            .seed(seed.wrapping_add(s))
+            .device(device)
+            .tile(&[h, w])
+            .offset(&[golden(h, s + 7), golden(w, s)])
+            .painter()?;
+        tiles.push(painter.render(&[0, 0], &[h, w]));
+    }
+    let tiles: Vec<&[f32]> = tiles.iter().map(Vec::as_slice).collect();
+    let period = |axis: usize| (weights.k[axis].abs() * config.crop as f32) as f64;
+    Ok(ModelReport {
+        metric: SIFID_NAME,
+        sifid: Summary::of(sifids),
+        seam_model_tile: seam_score_of_tiles(&tiles, h, w, c)?,
+        seam_exemplar: seam_score(&exemplar.values, h, w, c)?,
+        period_model: [period(0), period(1)],
+        period_exemplar: dominant_period(&exemplar.values, h, w, c),
+        width: w,
+        height: h,
+        seed,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{DMatrix, DVector};
+
+    #[test]
+    fn frechet_distance_of_a_gaussian_with_itself_is_zero_and_matches_closed_form() {
+        // Diagonal covariances: d = |dm|^2 + sum (sqrt(a) - sqrt(b))^2.
+        let a = Gaussian {
+            mean: DVector::from_vec(vec![1.0, 2.0, 0.0]),
+            covariance: DMatrix::from_diagonal(&DVector::from_vec(vec![4.0, 1.0, 9.0])),
+        };
+        let b = Gaussian {
+            mean: DVector::from_vec(vec![0.0, 2.0, 1.0]),
+            covariance: DMatrix::from_diagonal(&DVector::from_vec(vec![1.0, 1.0, 4.0])),
+        };
+        assert!(frechet_distance(&a, &a).abs() < 1e-9);
+        let expected = 2.0 + 1.0 + 0.0 + 1.0;
+        assert!((frechet_distance(&a, &b) - expected).abs() < 1e-9);
+    }
+
+    #[test]
+    fn symmetric_sqrt_squares_back() {
+        let m = DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0]);
+        let r = symmetric_sqrt(&m);
+        assert!((&r * &r - &m).abs().max() < 1e-10);
+    }
+
+    #[test]
+    fn seam_score_is_one_for_a_periodic_tile_and_large_for_a_ramp() {
+        let (h, w) = (32, 48);
+        let periodic: Vec<f32> = (0..h * w)
+            .map(|i| {
+                let (y, x) = ((i / w) as f32, (i % w) as f32);
+                // Diagonal waves: every phase crosses each seam, as in a stationary texture.
+                let (u, v) = (x / w as f32, y / h as f32);
+                (std::f32::consts::TAU * (u + v)).sin()
+                    + (std::f32::consts::TAU * (2.0 * u - 3.0 * v)).cos()
+            })
+            .collect();
+        let s = seam_score(&periodic, h, w, 1).unwrap();
+        assert!((s.columns - 1.0).abs() < 0.02, "{s:?}");
+        assert!((s.rows - 1.0).abs() < 0.02, "{s:?}");
+        let ramp: Vec<f32> = (0..h * w).map(|i| (i % w) as f32 / w as f32).collect();
+        assert!(seam_score(&ramp, h, w, 1).unwrap().columns > 20.0);
+    }
+
+    #[test]
+    fn dominant_period_finds_the_stripe_spacing() {
+        let (h, w) = (64, 128);
+        let v: Vec<f32> = (0..h * w)
+            .map(|i| {
+                let (y, x) = ((i / w) as f32, (i % w) as f32);
+                (std::f32::consts::TAU * x / 12.5).sin()
+                    + 0.5 * (std::f32::consts::TAU * y / 9.0).sin()
+            })
+            .collect();
+        let [rows, cols] = dominant_period(&v, h, w, 1);
+        assert!((cols.unwrap() - 12.5).abs() < 0.3, "{cols:?}");
+        assert!((rows.unwrap() - 9.0).abs() < 0.3, "{rows:?}");
+    }
+
+    #[test]
+    fn stem_output_has_the_documented_shape() {
+        let (h, w) = (40, 64);
+        let rgb = vec![0.5f32; h * w * 3];
+        let f = InceptionStem::embedded().features(&rgb, h, w).unwrap();
+        // 40 -> 19 -> 17 -> 17 -> pool 8 -> 8 -> 6; 64 -> 31 -> 29 -> 29 -> 14 -> 14 -> 12.
+        assert_eq!((f.height, f.width, f.channels), (6, 12, STEM_FEATURES));
+        assert!(
+            InceptionStem::embedded()
+                .features(&rgb[..18 * 18 * 3], 18, 18)
+                .is_err()
+        );
+    }
+}

@@ -1,0 +1,94 @@
+//! Which model a command paints with: `--model`, else the most recent model in the working
+//! folder (a run's `latest.ipfn`, or an `.ipfn` file), else the shipped honeycomb.
+
+use std::path::{Path, PathBuf};
+
+use crate::checkpoint::Checkpoint;
+use crate::error::Result;
+use crate::generator::{GeneratorConfig, GeneratorWeights};
+use crate::input_error;
+use crate::maps::MapSet;
+
+/// The honeycomb generator published by the authors of IPFN (MIT), converted with
+/// `ipfn import`; see `exemplars/README.md`.
+pub const SHIPPED_HONEYCOMB: &[u8] = include_bytes!("../exemplars/honeycomb.ipfn");
+
+/// The shipped honeycomb model's config and weights.
+pub fn shipped_model() -> Result<(GeneratorConfig, GeneratorWeights)> {
+    let checkpoint = Checkpoint::from_bytes(SHIPPED_HONEYCOMB, Path::new("<shipped honeycomb>"))?;
+    GeneratorWeights::read_from(&checkpoint)
+}
+
+/// A model to synthesize with, and a phrase saying where it came from.
+pub struct ChosenModel {
+    pub config: GeneratorConfig,
+    pub weights: GeneratorWeights,
+    pub description: String,
+    /// The maps of a map-set model.
+    pub maps: Option<MapSet>,
+}
+
+/// Loads `--model`, else the most recent model in `dir`, else the shipped honeycomb.
+pub fn choose_model(explicit: Option<&Path>, dir: &Path) -> Result<ChosenModel> {
+    let (checkpoint, description) = match explicit {
+        Some(path) => (Checkpoint::load(path)?, format!("{}", path.display())),
+        None => match most_recent_model(dir) {
+            Some(path) => (
+                Checkpoint::load(&path)?,
+                format!("{} (most recent model in this folder; --model to choose)", path.display()),
+            ),
+            None => (
+                Checkpoint::from_bytes(SHIPPED_HONEYCOMB, Path::new("<shipped honeycomb>"))?,
+                "shipped honeycomb (the IPFN authors' pretrained generator, MIT; --model to choose)".to_string(),
+            ),
+        },
+    };
+    let (config, weights) = GeneratorWeights::read_from(&checkpoint)?;
+    let maps = MapSet::read_from(&checkpoint, explicit.unwrap_or(Path::new("model")))?;
+    if let Some(set) = &maps
+        && set.channels() != config.channels
+    {
+        return Err(input_error!(
+            "{}: its map list has {} channels but the generator paints {}",
+            description,
+            set.channels(),
+            config.channels
+        ));
+    }
+    Ok(ChosenModel {
+        config,
+        weights,
+        description,
+        maps,
+    })
+}
+
+/// The newest `*.ipfn` in `dir` or `runs/*/latest.ipfn` under it.
+pub fn most_recent_model(dir: &Path) -> Option<PathBuf> {
+    let mut candidates: Vec<PathBuf> = Vec::new();
+    let ipfn_files = |d: &Path| -> Vec<PathBuf> {
+        std::fs::read_dir(d)
+            .into_iter()
+            .flatten()
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == "ipfn"))
+            .collect()
+    };
+    candidates.extend(ipfn_files(dir));
+    for run in std::fs::read_dir(dir.join("runs"))
+        .into_iter()
+        .flatten()
+        .flatten()
+    {
+        let latest = run.path().join("latest.ipfn");
+        if latest.is_file() {
+            candidates.push(latest);
+        }
+    }
+    candidates
+        .into_iter()
+        .filter_map(|p| Some((std::fs::metadata(&p).ok()?.modified().ok()?, p)))
+        .max()
+        .map(|(_, p)| p.strip_prefix(dir).map(Path::to_path_buf).unwrap_or(p))
+}

@@ -1,0 +1,365 @@
+//! Every training setting ([`TrainConfig`], the TOML file), the flags that override it
+//! ([`TrainOverrides`], generated from one list), and the run's kind ([`RunKind`]), decided once.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::condition::Guide;
+use crate::critic::CriticConfig;
+use crate::error::Result;
+use crate::exemplar::Exemplar;
+use crate::generator::GeneratorConfig;
+use crate::input_error;
+
+/// Every training setting. Read from TOML (unknown keys are rejected), overridden by flags,
+/// saved as `config.toml` in the run folder.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrainConfig {
+    /// Iterations to train (each: `critic_steps` critic then `generator_steps` generator updates).
+    pub iterations: u64,
+    /// Crops per step.
+    pub batch: usize,
+    /// Crop size in pixels (a multiple of 16; a crop spans 2 coordinate units).
+    pub crop: usize,
+    /// Random shift of the generated crops, uniform in [-shift, shift] coordinate units per axis.
+    pub shift: f32,
+    pub critic_steps: usize,
+    pub generator_steps: usize,
+    /// Adam learning rate and betas, for both networks.
+    pub lr: f64,
+    pub beta1: f64,
+    pub beta2: f64,
+    /// Weight of the gradient penalty.
+    pub gp_lambda: f64,
+    /// Seed of every random draw.
+    pub seed: u64,
+    /// Scale the exemplar by this factor first (Lanczos-3, anti-aliased); 1 keeps it as it is.
+    pub resize: f64,
+    /// Write a checkpoint (and update `latest.ipfn`) every this many iterations.
+    pub checkpoint_every: u64,
+    /// Write a preview image every this many iterations.
+    pub preview_every: u64,
+    /// Plain log line every this many iterations (when stderr is not a terminal).
+    pub log_every: u64,
+    /// Generator: encoding octaves, latent channels, depth, width, blend sigma, latent scale.
+    pub octaves: usize,
+    pub latent_dim: usize,
+    pub hidden_layers: usize,
+    pub width: usize,
+    pub sigma: f32,
+    pub latent_scale: f32,
+    /// Critic: output channels of its stride-2 convolutions.
+    pub critic_widths: Vec<usize>,
+    /// Directional guidance (conditional IPFN): `x`, `y`, `-x`, `-y` or `a,b,c` for
+    /// `g = a·X + b·Y + c` over the exemplar's normalised coordinates. Unset: no guidance.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub guide: Option<String>,
+    /// Solid texture (Henzler et al. 2020): a generator of 3 coordinates whose random
+    /// axis-aligned slices the 2D critic compares with crops of the 2D exemplar.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub solid: bool,
+    /// Set by `train` when the exemplar is a volume (`.npy`): a 3D generator against the 3D
+    /// critic, on cubic crops of `crop` voxels.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub volume: bool,
+    /// Volumes: the signed distances are multiplied by this and clamped to [-1, 1] (the
+    /// authors' truncated SDF).
+    #[serde(skip_serializing_if = "is_default_sdf_scale")]
+    pub sdf_scale: f32,
+    /// Volumes: density control (the paper's Fig. 7). The generator and the critic also get the
+    /// crop's density, the mean |sdf| of its truncated SDF; `synth --density` then sets it.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub density: bool,
+}
+
+fn is_default_sdf_scale(v: &f32) -> bool {
+    *v == DEFAULT_SDF_SCALE
+}
+
+/// The authors' `sdf_scale`.
+pub const DEFAULT_SDF_SCALE: f32 = 10.0;
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            iterations: 5000,
+            batch: 4,
+            crop: 128,
+            shift: 4.0,
+            critic_steps: 5,
+            generator_steps: 5,
+            lr: 1e-4,
+            beta1: 0.5,
+            beta2: 0.9,
+            gp_lambda: 10.0,
+            seed: 0,
+            resize: 1.0,
+            checkpoint_every: 100,
+            preview_every: 100,
+            log_every: 10,
+            octaves: 5,
+            latent_dim: 5,
+            hidden_layers: 10,
+            width: 128,
+            sigma: 0.2,
+            latent_scale: 0.5,
+            critic_widths: vec![64, 128, 256, 512],
+            guide: None,
+            solid: false,
+            volume: false,
+            sdf_scale: DEFAULT_SDF_SCALE,
+            density: false,
+        }
+    }
+}
+
+/// What a run learns and how its critic sees it. Decided once from the config and the exemplar
+/// ([`TrainConfig::run_kind`]); the trainer matches on it, so an illegal combination (a guided
+/// volume, a density-controlled image) cannot be written.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RunKind {
+    /// A 2D generator against 2D crops of an image or map set, guided or not.
+    Image { guide: Option<Guide> },
+    /// A 3D generator whose random axis-aligned slices the 2D critic compares with 2D crops.
+    Solid,
+    /// A 3D generator against cubes of an SDF volume, density-controlled or not.
+    Volume { density: bool },
+}
+
+impl RunKind {
+    /// Coordinate axes of the generator.
+    pub fn generator_axes(&self) -> usize {
+        match self {
+            Self::Image { .. } => 2,
+            Self::Solid | Self::Volume { .. } => 3,
+        }
+    }
+
+    /// Axes of the exemplar's crops and of the critic.
+    pub fn crop_axes(&self) -> usize {
+        match self {
+            Self::Image { .. } | Self::Solid => 2,
+            Self::Volume { .. } => 3,
+        }
+    }
+
+    /// Whether the generator takes a condition input (and the critic one more channel).
+    pub fn conditioned(&self) -> bool {
+        matches!(
+            self,
+            Self::Image { guide: Some(_) } | Self::Volume { density: true }
+        )
+    }
+}
+
+impl TrainConfig {
+    /// Parses TOML; `source` names the file in errors.
+    pub fn from_toml(text: &str, source: &Path) -> Result<Self> {
+        toml::from_str(text).map_err(|e| {
+            let msg = e.message().replace('\n', " ");
+            input_error!("{}: {msg}", source.display())
+        })
+    }
+
+    /// Reads a TOML config file.
+    pub fn from_file(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| input_error!("{}: cannot read: {e}", path.display()))?;
+        Self::from_toml(&text, path)
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("config serialises")
+    }
+
+    /// The run's kind from the config's flags (`volume` is set from the exemplar's format).
+    /// This is the one place where their combinations are checked.
+    pub fn run_kind(&self) -> Result<RunKind> {
+        let guide = self.guide.as_deref().map(str::parse).transpose()?;
+        match (self.volume, self.solid, guide, self.density) {
+            (true, false, None, density) => Ok(RunKind::Volume { density }),
+            (true, ..) => Err(input_error!(
+                "a volume exemplar takes neither --solid nor --guide"
+            )),
+            (false, _, _, true) => Err(input_error!(
+                "--density is for volumes (.npy); for images, --guide conditions on a direction"
+            )),
+            (false, true, Some(_), _) => Err(input_error!(
+                "--solid and --guide cannot be combined: guidance is defined over a 2D exemplar's frame"
+            )),
+            (false, true, None, false) => Ok(RunKind::Solid),
+            (false, false, guide, false) => Ok(RunKind::Image { guide }),
+        }
+    }
+
+    /// The generator of a run of `kind` on an exemplar of `channels` channels.
+    pub fn generator_config(&self, kind: &RunKind, channels: usize) -> GeneratorConfig {
+        GeneratorConfig::new()
+            .with_dims(kind.generator_axes())
+            .with_channels(channels)
+            .with_octaves(self.octaves)
+            .with_latent_dim(self.latent_dim)
+            .with_hidden_layers(self.hidden_layers)
+            .with_width(self.width)
+            .with_sigma(self.sigma)
+            .with_latent_scale(self.latent_scale)
+            // The model's pixel is the exemplar's pixel as the user gave it, before --resize,
+            // so `synth` at zoom 1 paints the pattern at the exemplar's own scale.
+            .with_crop(((self.crop as f64) / self.resize).round().max(1.0) as usize)
+            .with_guidance(kind.conditioned() as usize)
+    }
+
+    /// The critic sees the exemplar's channels and, for a conditioned run, the condition.
+    pub fn critic_config(&self, kind: &RunKind, channels: usize) -> CriticConfig {
+        CriticConfig::new(channels + kind.conditioned() as usize, self.crop)
+            .with_axes(kind.crop_axes())
+            .with_widths(self.critic_widths.clone())
+    }
+
+    /// Checks the numbers, and that the exemplar is large enough for the crop.
+    pub fn validate(&self, kind: &RunKind, exemplar: &Exemplar, path: &Path) -> Result<()> {
+        let positive = [
+            ("iterations", self.iterations as usize),
+            ("batch", self.batch),
+            ("critic_steps", self.critic_steps),
+            ("generator_steps", self.generator_steps),
+            ("checkpoint_every", self.checkpoint_every as usize),
+            ("preview_every", self.preview_every as usize),
+            ("log_every", self.log_every as usize),
+        ];
+        for (name, v) in positive {
+            if v == 0 {
+                return Err(input_error!("{name} = 0: must be at least 1"));
+            }
+        }
+        if !(self.lr > 0.0 && self.gp_lambda >= 0.0 && self.shift >= 0.0 && self.resize > 0.0) {
+            return Err(input_error!(
+                "lr and resize must be positive, gp_lambda and shift not negative"
+            ));
+        }
+        if let RunKind::Volume { .. } = kind {
+            if self.resize != 1.0 {
+                return Err(input_error!(
+                    "{}: a volume exemplar takes neither --solid, --guide nor --resize",
+                    path.display()
+                ));
+            }
+            if !self.sdf_scale.is_finite() || self.sdf_scale <= 0.0 {
+                return Err(input_error!("sdf_scale must be positive"));
+            }
+        }
+        self.critic_config(kind, exemplar.channels).validate()?;
+        self.generator_config(kind, exemplar.channels).validate()?;
+        let shape = exemplar.shape(kind.crop_axes());
+        let smallest = shape.iter().copied().min().unwrap_or(0);
+        if smallest < self.crop {
+            let sizes: Vec<String> = shape.iter().rev().map(usize::to_string).collect();
+            let (what, unit, resize) = match kind {
+                RunKind::Volume { .. } => ("volume", "voxel", ""),
+                _ => ("exemplar", "pixel", " or --resize"),
+            };
+            return Err(input_error!(
+                "{}: the {what} is {}, smaller than the {} {unit} crop; use a smaller --crop (a multiple of 16, e.g. {}){resize}",
+                path.display(),
+                sizes.join("x"),
+                self.crop,
+                (smallest / 16 * 16).max(16)
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Declares [`TrainOverrides`]: one `--flag` per listed config key, its help, and whether a
+/// resumed run may change it. A key is added to the command line here, once.
+macro_rules! overrides {
+    ($( $(#[doc = $doc:expr])* $key:ident : $ty:ty, $resume:ident $(, $attr:meta)*; )*) => {
+        /// Flags that override config keys of the same name.
+        #[derive(Debug, Clone, Default, clap::Args)]
+        pub struct TrainOverrides {
+            $( $(#[doc = $doc])* #[arg(long $(, $attr)*)] pub $key: Option<$ty>, )*
+        }
+
+        impl TrainOverrides {
+            /// Applies the flags to `config`.
+            pub fn apply(&self, config: &mut TrainConfig) {
+                $( if let Some(v) = self.$key.clone() { Override::set(&mut config.$key, v); } )*
+            }
+
+            /// The flags given that change the model or the random streams, which a resumed run
+            /// cannot change.
+            pub fn fixed_on_resume(&self) -> Vec<&'static str> {
+                let mut fixed = Vec::new();
+                $( if self.$key.is_some() && overrides!(@fixed $resume) {
+                    fixed.push(concat!("--", stringify!($key)));
+                } )*
+                fixed
+            }
+        }
+    };
+    (@fixed fixed) => { true };
+    (@fixed resumable) => { false };
+}
+
+/// How a flag's value becomes a config value (`--guide x` sets `Some("x")`).
+trait Override<T> {
+    fn set(&mut self, value: T);
+}
+
+impl<T> Override<T> for T {
+    fn set(&mut self, value: T) {
+        *self = value;
+    }
+}
+
+impl Override<String> for Option<String> {
+    fn set(&mut self, value: String) {
+        *self = Some(value);
+    }
+}
+
+overrides! {
+    /// Total iterations (with --resume: the new total).
+    iterations: u64, resumable;
+    /// Crops per step.
+    batch: usize, fixed;
+    /// Crop size in pixels, a multiple of 16.
+    crop: usize, fixed;
+    /// Random shift of generated crops, in coordinate units (a crop spans 2).
+    shift: f32, fixed;
+    /// Critic updates per iteration.
+    critic_steps: usize, fixed;
+    /// Generator updates per iteration.
+    generator_steps: usize, fixed;
+    /// Adam learning rate.
+    lr: f64, fixed;
+    /// Seed of every random draw.
+    seed: u64, fixed;
+    /// Scale the exemplar first (Lanczos-3, anti-aliased), e.g. 0.5.
+    resize: f64, fixed;
+    /// Checkpoint every N iterations.
+    checkpoint_every: u64, resumable;
+    /// Preview image every N iterations.
+    preview_every: u64, resumable;
+    /// Plain log line every N iterations (when stderr is not a terminal).
+    log_every: u64, resumable;
+    /// Generator: encoding octaves.
+    octaves: usize, fixed;
+    /// Generator: latent channels.
+    latent_dim: usize, fixed;
+    /// Generator: hidden layers.
+    hidden_layers: usize, fixed;
+    /// Generator: units per hidden layer.
+    width: usize, fixed;
+    /// Directional guidance (conditional IPFN): x, y, -x, -y or a,b,c, for g = a·x + b·y + c
+    /// over the exemplar (x, y in [-1, 1]). The model then needs --guide in synth.
+    guide: String, fixed, value_name = "LINE", allow_hyphen_values = true;
+    /// Learn a solid texture from the 2D exemplar: a 3D generator whose random axis-aligned
+    /// slices must look like the exemplar (paint it with `synth --solid --size WxHxD`).
+    solid: bool, fixed, num_args = 0, default_missing_value = "true";
+    /// Volumes: density control. Condition the generator and the critic on each crop's
+    /// density (mean |sdf|); paint with `synth --density`.
+    density: bool, fixed, num_args = 0, default_missing_value = "true";
+}

@@ -1,0 +1,262 @@
+//! The generated side of the critic's input: for each sample, a crop's grid of coordinates
+//! moved by a random shift, a fresh latent field, and the condition of a random real crop;
+//! painted by the framework's generator (with gradient), or on the CPU by synthesis' own fused
+//! engine ([`crate::synth::paint_fused`]) when no gradient is needed.
+
+use burn::prelude::*;
+use rayon::prelude::*;
+
+use super::step::{stream, uniform};
+use super::{RunKind, Trainer};
+use crate::generator::Generator;
+use crate::generator::fused::{CHUNK_POINTS, FusedGenerator};
+use crate::latent::{DeviceLattice, LatentField, derive_seed};
+use crate::sample::crop_coordinate;
+
+/// Points per generator evaluation when training on flex (see [`Trainer::fake_values`]).
+pub const FLEX_TRAIN_CHUNK: usize = 4096;
+
+impl Trainer {
+    /// The coordinates `[points, axes]` of generated sample `s` and its latent field.
+    ///
+    /// A crop's grid of pixel centres spans 2 units and is shifted by a random offset per
+    /// axis. For a solid texture it lies in a random axis-aligned plane of the volume: the
+    /// plane's axis sits at its random offset, and the crop's rows and columns run along the
+    /// other two axes in order. For a volume it is a cube of `crop³` voxels.
+    pub(super) fn sample_coordinates(&self, s: usize, counters: &[u64]) -> (Vec<f32>, LatentField) {
+        let cfg = &self.config;
+        let dims = self.kind.generator_axes();
+        let key = |purpose: u64, extra: u64| {
+            let mut k = vec![purpose, s as u64, extra];
+            k.extend_from_slice(counters);
+            k
+        };
+        let shift: Vec<f32> = (0..dims as u64)
+            .map(|axis| (uniform(cfg.seed, &key(stream::SHIFT, axis)) * 2.0 - 1.0) * cfg.shift)
+            .collect();
+        let field = LatentField::hashed(
+            derive_seed(cfg.seed, &key(stream::LATENT, 0)),
+            dims,
+            cfg.latent_dim,
+        )
+        .with_sigma(cfg.sigma);
+        let crop = cfg.crop;
+        let along = |i: usize, axis: usize| crop_coordinate(crop, i, shift[axis]);
+        // The axes the crop's points run along: all of them, or a solid's random plane.
+        let (fixed, running): (Option<usize>, Vec<usize>) = match self.kind {
+            RunKind::Solid => {
+                let normal =
+                    ((uniform(cfg.seed, &key(stream::SLICE_AXIS, 0)) * 3.0) as usize).min(2);
+                (Some(normal), (0..3).filter(|&a| a != normal).collect())
+            }
+            _ => (None, (0..dims).collect()),
+        };
+        let points = crop.pow(running.len() as u32);
+        let mut coords = vec![0f32; points * dims];
+        for (q, p) in coords.chunks_exact_mut(dims).enumerate() {
+            if let Some(normal) = fixed {
+                p[normal] = shift[normal];
+            }
+            let mut rest = q;
+            for &axis in running.iter().rev() {
+                p[axis] = along(rest % crop, axis);
+                rest /= crop;
+            }
+        }
+        (coords, field)
+    }
+
+    /// Generated crops: the generator at every point of every sample, then the condition
+    /// the generator was given, as one more channel.
+    ///
+    /// # Shapes
+    /// - output: `[batch, channels (+ 1), depth, crop, crop]` on `device` (`generator`'s)
+    pub fn fake_batch(
+        &self,
+        generator: &Generator,
+        device: &Device,
+        counters: &[u64],
+    ) -> Tensor<5> {
+        let (b, s, c) = (self.config.batch, self.config.crop, self.exemplar.channels);
+        let depth = if self.kind.crop_axes() == 3 { s } else { 1 };
+        let (values, conditions) = self.fake_values(generator, device, counters);
+        let crops = values.reshape([b, depth, s, s, c]).permute([0, 4, 1, 2, 3]); // [b, c, depth, s, s]
+        if conditions.is_empty() {
+            return crops;
+        }
+        let g = Tensor::<5>::from_data(TensorData::new(conditions, [b, 1, depth, s, s]), device);
+        Tensor::cat(vec![crops, g], 1) // [b, c + 1, depth, s, s]
+    }
+
+    /// The generator at every point of every sample, and each point's condition (empty for an
+    /// unconditioned run).
+    ///
+    /// # Shapes
+    /// - output: `[batch * points, channels]` on `device`, and `[batch * points]`
+    fn fake_values(
+        &self,
+        generator: &Generator,
+        device: &Device,
+        counters: &[u64],
+    ) -> (Tensor<2>, Vec<f32>) {
+        let cfg = &self.config;
+        let (b, ld) = (cfg.batch, cfg.latent_dim);
+        let conditioned = self.kind.conditioned() as usize;
+        let zw = ld + conditioned; // generator input after the encoding: latent, then g
+        let (n, dims) = (self.crop_points(), self.kind.generator_axes());
+        if device.clone().inner() != Device::flex() {
+            return self.fake_values_on_device(generator, device, counters);
+        }
+        let mut coords = vec![0f32; b * n * dims];
+        let mut latent = vec![0f32; b * n * zw];
+        let mut conditions = vec![0f32; b * n * conditioned];
+        coords
+            .par_chunks_mut(n * dims)
+            .zip(latent.par_chunks_mut(n * zw))
+            .enumerate()
+            .for_each(|(s, (p, z))| {
+                let (sample, field) = self.sample_coordinates(s, counters);
+                p.copy_from_slice(&sample);
+                let u: Vec<f32> = p.iter().map(|v| v * cfg.latent_scale).collect();
+                if conditioned == 0 {
+                    field.fill(&u, z);
+                    return;
+                }
+                let g = self.fake_condition(s, counters);
+                let mut zs = vec![0f32; n * ld];
+                field.fill(&u, &mut zs);
+                for q in 0..n {
+                    z[q * zw..q * zw + ld].copy_from_slice(&zs[q * ld..(q + 1) * ld]);
+                    z[q * zw + ld] = g[q];
+                }
+            });
+        if conditioned == 1 {
+            for (s, out) in conditions.chunks_mut(n).enumerate() {
+                out.copy_from_slice(&self.fake_condition(s, counters));
+            }
+        }
+        let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, dims]), device);
+        let z = Tensor::<2>::from_data(TensorData::new(latent, [b * n, zw]), device);
+        // The MLP in chunks of FLEX_TRAIN_CHUNK points, so each layer's activations (and, in
+        // the backward pass, their gradients) stay in cache; the weight gradients sum over
+        // the chunks.
+        let values: Vec<Tensor<2>> = p
+            .split(FLEX_TRAIN_CHUNK, 0)
+            .into_iter()
+            .zip(z.split(FLEX_TRAIN_CHUNK, 0))
+            .map(|(p, z)| generator.forward(p, z)) // [chunk, c]
+            .collect();
+        (Tensor::cat(values, 0), conditions) // [b * n, c]
+    }
+
+    /// The condition slice of generated sample `s`: that of a random real crop (stream
+    /// `GUIDE`); empty for an unconditioned run.
+    pub(super) fn fake_condition(&self, s: usize, counters: &[u64]) -> Vec<f32> {
+        if !self.kind.conditioned() {
+            return Vec::new();
+        }
+        let origin = self.crop_origin(stream::GUIDE, s, counters);
+        self.crop_condition(&origin)
+    }
+
+    /// [`Trainer::fake_values`] on a GPU: the same crops and fields, with the latent blend
+    /// evaluated on the device from each sample's few lattice vectors ([`DeviceLattice`])
+    /// instead of `latent_dim` floats per point sent from the host. (On flex the host blend
+    /// is kept: it is as fast there, and gives the latent values the fused CPU evaluator gives.)
+    ///
+    /// # Shapes
+    /// - output: `[batch * points, channels]` on `device`, and `[batch * points]`
+    fn fake_values_on_device(
+        &self,
+        generator: &Generator,
+        device: &Device,
+        counters: &[u64],
+    ) -> (Tensor<2>, Vec<f32>) {
+        let cfg = &self.config;
+        let b = cfg.batch;
+        let (n, dims) = (self.crop_points(), self.kind.generator_axes());
+        let mut coords = Vec::with_capacity(b * n * dims);
+        let mut conditions = Vec::new();
+        let mut plans = Vec::with_capacity(b);
+        for s in 0..b {
+            let (p, field) = self.sample_coordinates(s, counters);
+            // The box of lattice cells this crop touches (u = p * latent_scale, as on the device).
+            let (mut lo, mut hi) = (vec![f32::INFINITY; dims], vec![f32::NEG_INFINITY; dims]);
+            for q in p.chunks_exact(dims) {
+                for d in 0..dims {
+                    let u = q[d] * cfg.latent_scale;
+                    lo[d] = lo[d].min(u);
+                    hi[d] = hi[d].max(u);
+                }
+            }
+            coords.extend_from_slice(&p);
+            conditions.extend(self.fake_condition(s, counters));
+            plans.push((field, lo, hi));
+        }
+        let fields: Vec<(&LatentField, Vec<f32>, Vec<f32>)> = plans
+            .iter()
+            .map(|(f, lo, hi)| (f, lo.clone(), hi.clone()))
+            .collect();
+        let lattice = DeviceLattice::new(&fields, device);
+        let sample = Tensor::<1, Int>::arange(0..b as i64, device)
+            .reshape([b, 1])
+            .expand([b, n])
+            .reshape([b * n]); // [b * n]: the field of each point
+        let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, dims]), device);
+        let mut z = lattice.blend(p.clone().mul_scalar(cfg.latent_scale), Some(sample)); // [b * n, ld]
+        if !conditions.is_empty() {
+            let g = Tensor::<2>::from_data(TensorData::new(conditions.clone(), [b * n, 1]), device);
+            z = Tensor::cat(vec![z, g], 1); // [b * n, ld + 1]
+        }
+        (generator.forward(p, z), conditions) // [b * n, c]
+    }
+
+    /// The same crops as [`Trainer::fake_batch`], painted by synthesis' fused CPU engine (no
+    /// gradient: for the critic's steps).
+    ///
+    /// # Shapes
+    /// - output: `[batch, channels (+ 1), depth, crop, crop]` on the training device
+    pub fn fake_batch_fused(&self, generator: &FusedGenerator, counters: &[u64]) -> Tensor<5> {
+        let cfg = &self.config;
+        let (b, s, c) = (cfg.batch, cfg.crop, self.exemplar.channels);
+        let cg = c + self.kind.conditioned() as usize;
+        let (n, dims) = (self.crop_points(), self.kind.generator_axes());
+        let samples: Vec<(Vec<f32>, LatentField, Vec<f32>)> = (0..b)
+            .into_par_iter()
+            .map(|i| {
+                let (p, field) = self.sample_coordinates(i, counters);
+                (p, field, self.fake_condition(i, counters))
+            })
+            .collect();
+        let mut points = vec![0f32; b * n * c]; // [b, n, c]
+        crate::synth::paint_fused(
+            generator,
+            |i| &samples[i].1,
+            &vec![cfg.latent_scale; dims],
+            c,
+            &mut points,
+            n,
+            CHUNK_POINTS,
+            |i, start, count, coords, condition| {
+                let (p, _, g) = &samples[i];
+                coords.clear();
+                coords.extend_from_slice(&p[start * dims..(start + count) * dims]);
+                condition.clear();
+                if !g.is_empty() {
+                    condition.extend_from_slice(&g[start..start + count]);
+                }
+            },
+        );
+        let mut planar = vec![0f32; b * cg * n]; // [b, c (+ g), n]
+        for (i, (_, _, g)) in samples.iter().enumerate() {
+            for q in 0..n {
+                for ch in 0..c {
+                    planar[(i * cg + ch) * n + q] = points[(i * n + q) * c + ch];
+                }
+            }
+            planar[(i * cg + c) * n..(i + 1) * cg * n].copy_from_slice(g);
+        }
+        let depth = if self.kind.crop_axes() == 3 { s } else { 1 };
+        Tensor::from_data(TensorData::new(planar, [b, cg, depth, s, s]), &self.device)
+    }
+}
