@@ -48,6 +48,26 @@ impl DeviceChoice {
         }
     }
 
+    /// The best device present for training: CUDA where it starts, else wgpu where it sees a
+    /// real GPU (not only software adapters such as lavapipe or llvmpipe), else flex (the CPU).
+    pub fn best_for_training() -> Self {
+        if Self::Cuda.burn_device().is_ok() {
+            Self::Cuda
+        } else if wgpu_has_gpu() && Self::Wgpu.burn_device().is_ok() {
+            Self::Wgpu
+        } else {
+            Self::Flex
+        }
+    }
+
+    /// `--device NAME`, or `auto` for [`DeviceChoice::best_for_training`].
+    pub fn for_training(name: &str) -> Result<Self> {
+        match name.to_ascii_lowercase().as_str() {
+            "auto" => Ok(Self::best_for_training()),
+            other => other.parse(),
+        }
+    }
+
     /// The device training uses: flex stands in for the fused CPU path, which has no backward.
     pub fn training_device(&self) -> Result<Device> {
         Ok(self.burn_device()?.unwrap_or_else(Device::flex))
@@ -72,6 +92,31 @@ pub fn wgpu_is_software() -> bool {
 /// A build without the `wgpu` feature has no wgpu adapter, software or not.
 #[cfg(not(feature = "wgpu"))]
 pub fn wgpu_is_software() -> bool {
+    false
+}
+
+/// Whether wgpu sees a real GPU (discrete, integrated or virtual) on any backend: a machine
+/// with only software adapters (lavapipe, llvmpipe through GL, WARP) has none.
+#[cfg(feature = "wgpu")]
+pub fn wgpu_has_gpu() -> bool {
+    use burn::tensor::wgpu::wgpu;
+    let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle();
+    descriptor.backends = wgpu::Backends::all();
+    let instance = wgpu::Instance::new(descriptor);
+    let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+    adapters.iter().any(|a| {
+        matches!(
+            a.get_info().device_type,
+            wgpu::DeviceType::DiscreteGpu
+                | wgpu::DeviceType::IntegratedGpu
+                | wgpu::DeviceType::VirtualGpu
+        )
+    })
+}
+
+/// A build without the `wgpu` feature has no wgpu adapter.
+#[cfg(not(feature = "wgpu"))]
+pub fn wgpu_has_gpu() -> bool {
     false
 }
 

@@ -60,6 +60,32 @@ impl Exemplar {
         Self::from_unit(width, height, c, &unit)
     }
 
+    /// Whether every pixel's first three channels are equal (a gray image stored as RGB).
+    pub fn is_gray(&self) -> bool {
+        let c = self.channels;
+        c >= 3
+            && self
+                .values
+                .chunks_exact(c)
+                .all(|p| (p[0] - p[1]).abs() < 1e-3 && (p[0] - p[2]).abs() < 1e-3)
+    }
+
+    /// The first channel alone, and alpha if there is one (RGBA becomes gray + alpha): for a
+    /// gray image stored as RGB.
+    pub fn to_gray(&self) -> Self {
+        let c = self.channels;
+        let keep: Vec<usize> = if c == 4 { vec![0, 3] } else { vec![0] };
+        Self {
+            channels: keep.len(),
+            values: self
+                .values
+                .chunks_exact(c)
+                .flat_map(|p| keep.iter().map(move |&k| p[k]))
+                .collect(),
+            ..*self
+        }
+    }
+
     /// The exemplar's extent over its last `axes` axes, in array order: `[height, width]` or
     /// `[depth, height, width]`.
     pub fn shape(&self, axes: usize) -> Vec<usize> {

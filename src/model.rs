@@ -1,5 +1,6 @@
 //! Which model a command paints with: `--model`, else the most recent model in the working
-//! folder (a run's `latest.ipfn`, or an `.ipfn` file), else the shipped honeycomb.
+//! folder (a run's `best.ipfn`, else its `latest.ipfn`, or an `.ipfn` file), else the shipped
+//! honeycomb. `--model RUN_FOLDER` takes that folder's best or latest model.
 
 use std::path::{Path, PathBuf};
 
@@ -30,6 +31,19 @@ pub struct ChosenModel {
 
 /// Loads `--model`, else the most recent model in `dir`, else the shipped honeycomb.
 pub fn choose_model(explicit: Option<&Path>, dir: &Path) -> Result<ChosenModel> {
+    let in_folder = explicit.filter(|p| p.is_dir()).map(|dir| {
+        run_model(dir).ok_or_else(|| {
+            input_error!(
+                "{}: no best.ipfn or latest.ipfn in this folder; give a model file",
+                dir.display()
+            )
+        })
+    });
+    let explicit = match in_folder {
+        Some(model) => Some(model?),
+        None => explicit.map(Path::to_path_buf),
+    };
+    let explicit = explicit.as_deref();
     let (checkpoint, description) = match explicit {
         Some(path) => (Checkpoint::load(path)?, format!("{}", path.display())),
         None => match most_recent_model(dir) {
@@ -63,7 +77,16 @@ pub fn choose_model(explicit: Option<&Path>, dir: &Path) -> Result<ChosenModel> 
     })
 }
 
-/// The newest `*.ipfn` in `dir` or `runs/*/latest.ipfn` under it.
+/// The model a run folder paints with: its `best.ipfn` (the best-scoring checkpoint) where
+/// there is one, else its `latest.ipfn`.
+pub fn run_model(run: &Path) -> Option<PathBuf> {
+    ["best.ipfn", "latest.ipfn"]
+        .iter()
+        .map(|name| run.join(name))
+        .find(|p| p.is_file())
+}
+
+/// The newest `*.ipfn` in `dir`, or run folder model ([`run_model`]) under `dir/runs`.
 pub fn most_recent_model(dir: &Path) -> Option<PathBuf> {
     let mut candidates: Vec<PathBuf> = Vec::new();
     let ipfn_files = |d: &Path| -> Vec<PathBuf> {
@@ -81,9 +104,8 @@ pub fn most_recent_model(dir: &Path) -> Option<PathBuf> {
         .flatten()
         .flatten()
     {
-        let latest = run.path().join("latest.ipfn");
-        if latest.is_file() {
-            candidates.push(latest);
+        if let Some(model) = run_model(&run.path()) {
+            candidates.push(model);
         }
     }
     candidates

@@ -100,10 +100,10 @@ fn resume_continues_bit_exactly() {
     ] {
         assert!(d.join(f).is_file(), "{f} missing");
     }
-    // synth picks up the newest run's model by default.
+    // synth picks up the newest run's model by default: its best-scoring checkpoint.
     let out = ipfn(d, &["synth", "--size", "16", "-o", "s.png"]);
     assert!(
-        stderr(&out).contains("runs/two/latest.ipfn"),
+        stderr(&out).contains("runs/two/best.ipfn"),
         "{}",
         stderr(&out)
     );

@@ -11,6 +11,7 @@ use crate::device::DeviceChoice;
 use crate::error::Result;
 use crate::input_error;
 use crate::maps::MapFiles;
+use crate::train::recipe::settle;
 use crate::train::{ExemplarSource, RunEnd, TrainConfig, TrainOverrides, Trainer, default_run_dir};
 
 #[derive(Debug, Args)]
@@ -44,8 +45,10 @@ pub struct TrainArgs {
     /// Resample maps of another size to the first map's size, and accept mixed bit depths.
     #[arg(long, requires = "maps")]
     pub resize_maps: bool,
-    /// Where to train: flex (CPU), wgpu (GPU) or cuda (NVIDIA GPU; a build with --features cuda).
-    #[arg(long, default_value = "flex")]
+    /// Where to train: auto (the best present: cuda where it starts, else a wgpu GPU, else
+    /// the CPU; the choice is printed), flex (CPU), wgpu (GPU) or cuda (NVIDIA GPU; a build
+    /// with --features cuda).
+    #[arg(long, default_value = "auto")]
     pub device: String,
     /// Print nothing but errors.
     #[arg(long, short)]
@@ -55,7 +58,8 @@ pub struct TrainArgs {
 }
 
 pub(super) fn train(args: TrainArgs) -> Result<()> {
-    let device = args.device.parse::<DeviceChoice>()?.training_device()?;
+    let choice = DeviceChoice::for_training(&args.device)?;
+    let device = choice.training_device()?;
     let say = |s: String| {
         if !args.quiet {
             eprintln!("{s}");
@@ -84,16 +88,21 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
                     ));
                 }
             };
-            let mut config = match &args.config {
+            let (mut config, mut explicit) = match &args.config {
                 Some(path) => TrainConfig::from_file(path)?,
-                None => TrainConfig::default(),
+                None => (TrainConfig::default(), Default::default()),
             };
             args.overrides.apply(&mut config);
+            explicit.extend(args.overrides.given().into_iter().map(String::from));
+            let chosen = settle(&mut config, &source, &explicit)?;
             let run_dir = args
                 .out
                 .clone()
                 .unwrap_or_else(|| default_run_dir(source.main_path()));
             let trainer = Trainer::start(config, source, &run_dir, &device)?;
+            for line in chosen {
+                say(line); // after the run's settings were checked, so an error stays one line
+            }
             if let Some(maps) = trainer.maps() {
                 say(format!("map set: {}", maps.describe()));
             }
@@ -101,28 +110,34 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
         }
     };
     let total = trainer.config.iterations;
+    let length = match &trainer.config.time {
+        Some(time) => time.clone(),
+        None => format!("{total} iterations"),
+    };
     say(format!(
-        "training {} -> {} ({} iterations, batch {}, crop {}, {})",
+        "training {} -> {} ({length}, batch {}, crop {}, {})",
         trainer.run_dir().display(),
         trainer.run_dir().join("latest.ipfn").display(),
-        total,
         trainer.config.batch,
         trainer.config.crop,
-        args.device
+        crate::bench::device_name(choice)
     ));
 
     let stop = stop_on_ctrl_c();
     let bar = iteration_bar(!args.quiet, total, trainer.iteration);
     let (start, first, log_every) = (Instant::now(), trainer.iteration, trainer.config.log_every);
-    let end = trainer.run(stop, |_, stats| {
-        let it = stats.iteration;
+    let end = trainer.run(stop, |trainer, stats| {
+        let (it, total) = (stats.iteration, trainer.config.iterations);
         let line = stats.summary();
         match &bar {
             Some(bar) => {
+                bar.set_length(total);
                 bar.set_position(it);
                 bar.set_message(line);
             }
-            None if !args.quiet && (it.is_multiple_of(log_every) || it == total) => {
+            None if !args.quiet
+                && (it.is_multiple_of(log_every) || it == total || stats.sifid.is_some()) =>
+            {
                 eprintln!(
                     "iter {it}/{total}  {line}  {:.3} it/s",
                     stats.iterations_per_second

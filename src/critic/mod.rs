@@ -107,7 +107,8 @@ impl CriticConfig {
 
 /// One stride-2 convolution. The weight is `[out, in, depth, kernel, kernel]`, with `depth = 1`
 /// for a 2D critic (files written before the critic was one type store it without that axis;
-/// [`crate::checkpoint::Checkpoint::tensor`] reads either).
+/// [`crate::checkpoint::Checkpoint::tensor`] reads either). [`Critic::weights`] gives the shape
+/// the convolution takes.
 #[derive(Module, Debug)]
 pub struct Conv {
     pub weight: Param<Tensor<5>>,
@@ -124,32 +125,50 @@ pub struct Critic {
     pub axes: usize,
 }
 
+/// The critic's convolution weights as its convolutions take them: `[out, in, k, k]` in 2D,
+/// `[out, in, k, k, k]` in 3D. Made once per evaluation ([`Critic::weights`]) and shared by every
+/// use in it (the scores of real and fake crops and the penalty's transposes), so each weight
+/// reaches autodiff through one reshape and its gradient sums its uses in the same order as a
+/// plain 2D critic's: training stays bit for bit what it was before the critic was one type.
+pub enum Weights {
+    Planar(Vec<Tensor<4>>),
+    Volumetric(Vec<Tensor<5>>),
+}
+
 impl Critic {
-    /// The one place where 2 and 3 axes differ: a stride-2 convolution.
+    /// The convolution weights for one evaluation (see [`Weights`]).
+    pub fn weights(&self) -> Weights {
+        let all = self.convs.iter().map(|c| c.weight.val());
+        if self.axes == 3 {
+            return Weights::Volumetric(all.collect());
+        }
+        Weights::Planar(
+            all.map(|w| {
+                let [o, i, _, k, _] = w.dims();
+                w.reshape([o, i, k, k])
+            })
+            .collect(),
+        )
+    }
+
+    /// The one place where 2 and 3 axes differ: stride-2 convolution `layer`.
     ///
     /// # Shapes
     /// - `x`: `[batch, in, depth, rows, cols]` (depth 1 in 2D)
     /// - output: `[batch, out, depth / 2, rows / 2, cols / 2]` (depth 1 in 2D)
-    fn conv(&self, x: Tensor<5>, conv: &Conv) -> Tensor<5> {
-        let bias = conv.bias.as_ref().map(|b| b.val());
-        if self.axes == 3 {
-            return conv3d(
-                x,
-                conv.weight.val(),
-                bias,
-                ConvOptions::new([2; 3], [1; 3], [1; 3], 1),
-            );
-        }
-        let [b, c, _, h, w] = x.dims();
-        let [o, i, _, k, _] = conv.weight.val().dims();
-        let weight = conv.weight.val().reshape([o, i, k, k]);
-        let y = conv2d(
-            x.reshape([b, c, h, w]),
-            weight,
-            bias,
-            ConvOptions::new([2, 2], [1, 1], [1, 1], 1),
-        ); // [b, o, h / 2, w / 2]
-        let [_, _, h2, w2] = y.dims();
+    fn conv(&self, weights: &Weights, layer: usize, x: Tensor<5>) -> Tensor<5> {
+        let bias = self.convs[layer].bias.as_ref().map(|b| b.val());
+        let w = match weights {
+            Weights::Volumetric(w) => {
+                let options = ConvOptions::new([2; 3], [1; 3], [1; 3], 1);
+                return conv3d(x, w[layer].clone(), bias, options);
+            }
+            Weights::Planar(w) => w[layer].clone(),
+        };
+        let [b, c, _, h, width] = x.dims();
+        let options = ConvOptions::new([2, 2], [1, 1], [1, 1], 1);
+        let y = conv2d(x.reshape([b, c, h, width]), w, bias, options); // [b, o, h / 2, w / 2]
+        let [_, o, h2, w2] = y.dims();
         y.reshape([b, o, 1, h2, w2])
     }
 
@@ -158,17 +177,18 @@ impl Critic {
     /// # Shapes
     /// - `g`: `[batch, out, depth / 2, rows / 2, cols / 2]`
     /// - output: `[batch, in, depth, rows, cols]`
-    fn conv_transpose(&self, g: Tensor<5>, conv: &Conv) -> Tensor<5> {
-        if self.axes == 3 {
-            let options = ConvTransposeOptions::new([2; 3], [1; 3], [0; 3], [1; 3], 1);
-            return conv_transpose3d(g, conv.weight.val(), None, options);
-        }
-        let [b, c, _, h, w] = g.dims();
-        let [o, i, _, k, _] = conv.weight.val().dims();
-        let weight = conv.weight.val().reshape([o, i, k, k]);
+    fn conv_transpose(&self, weights: &Weights, layer: usize, g: Tensor<5>) -> Tensor<5> {
+        let w = match weights {
+            Weights::Volumetric(w) => {
+                let options = ConvTransposeOptions::new([2; 3], [1; 3], [0; 3], [1; 3], 1);
+                return conv_transpose3d(g, w[layer].clone(), None, options);
+            }
+            Weights::Planar(w) => w[layer].clone(),
+        };
+        let [b, c, _, h, width] = g.dims();
         let options = ConvTransposeOptions::new([2, 2], [1, 1], [0, 0], [1, 1], 1);
-        let x = conv_transpose2d(g.reshape([b, c, h, w]), weight, None, options); // [b, i, 2h, 2w]
-        let [_, _, h2, w2] = x.dims();
+        let x = conv_transpose2d(g.reshape([b, c, h, width]), w, None, options); // [b, in, 2h, 2w]
+        let [_, i, h2, w2] = x.dims();
         x.reshape([b, i, 1, h2, w2])
     }
 
@@ -178,22 +198,32 @@ impl Critic {
     /// - `x`: `[batch, channels, depth, crop, crop]` (depth 1 in 2D, else crop)
     /// - output: `[batch, 1]`
     pub fn forward(&self, x: Tensor<5>) -> Tensor<2> {
-        self.forward_with_masks(x, false).0
+        self.score(&self.weights(), x)
+    }
+
+    /// [`Critic::forward`] with weights made once by [`Critic::weights`].
+    pub fn score(&self, weights: &Weights, x: Tensor<5>) -> Tensor<2> {
+        self.forward_with_masks(weights, x, false).0
     }
 
     /// The detached LeakyReLU slope masks of every layer at `x` (1 where the pre-activation is
     /// positive, `slope` elsewhere): the linear region D is in.
     pub fn activation_masks(&self, x: Tensor<5>) -> Vec<Tensor<5>> {
-        self.forward_with_masks(x, true).1
+        self.forward_with_masks(&self.weights(), x, true).1
     }
 
     /// Forward pass that also returns each layer's detached LeakyReLU slope mask when `masks`
     /// is set.
-    fn forward_with_masks(&self, x: Tensor<5>, masks: bool) -> (Tensor<2>, Vec<Tensor<5>>) {
+    fn forward_with_masks(
+        &self,
+        weights: &Weights,
+        x: Tensor<5>,
+        masks: bool,
+    ) -> (Tensor<2>, Vec<Tensor<5>>) {
         let mut h = x;
         let mut slopes = Vec::new();
-        for conv in &self.convs {
-            let z = self.conv(h, conv); // [b, w, d/2, s/2, s/2]
+        for layer in 0..self.convs.len() {
+            let z = self.conv(weights, layer, h); // [b, w, d/2, s/2, s/2]
             if masks {
                 let positive = z.clone().detach().greater_elem(0.0).float();
                 slopes.push(positive * (1.0 - self.slope) + self.slope);
@@ -211,7 +241,7 @@ impl Critic {
     /// # Shapes
     /// - `x`: `[batch, channels, depth, crop, crop]`
     /// - output: the same
-    pub fn input_gradient(&self, x: Tensor<5>) -> Tensor<5> {
+    pub fn input_gradient(&self, weights: &Weights, x: Tensor<5>) -> Tensor<5> {
         let [b, ..] = x.dims();
         // The masks need no graph: on an autodiff device compute them on the inner backend.
         let masks: Vec<Tensor<5>> = if x.device().is_autodiff() {
@@ -232,9 +262,9 @@ impl Critic {
             .val()
             .reshape([1, c, d, s, t])
             .repeat_dim(0, b); // [b, c, d, s, t]
-        for (conv, mask) in self.convs.iter().zip(&masks).rev() {
+        for (layer, mask) in masks.iter().enumerate().rev() {
             g = g * mask.clone(); // through the LeakyReLU
-            g = self.conv_transpose(g, conv); // through the convolution
+            g = self.conv_transpose(weights, layer, g); // through the convolution
         }
         g
     }
@@ -248,6 +278,7 @@ impl Critic {
     /// - output: `[1]`
     pub fn gradient_penalty(
         &self,
+        weights: &Weights,
         real: Tensor<5>,
         fake: Tensor<5>,
         alpha: Tensor<1>,
@@ -256,7 +287,7 @@ impl Critic {
         let [b, ..] = real.dims();
         let alpha = alpha.reshape([b, 1, 1, 1, 1]);
         let x_hat = real * alpha.clone() + fake * (alpha.neg() + 1.0);
-        let g = self.input_gradient(x_hat); // [b, c, d, h, w]
+        let g = self.input_gradient(weights, x_hat); // [b, c, d, h, w]
         let [_, c, d, h, w] = g.dims();
         let norm = (g.powi_scalar(2).reshape([b, c * d * h * w]).sum_dim(1) + 1e-12).sqrt(); // [b, 1]
         ((norm - 1.0).powi_scalar(2)).mean() * lambda

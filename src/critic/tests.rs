@@ -98,7 +98,7 @@ fn input_gradient_matches_finite_differences(case: Case) {
     let critic = case.critic(&device);
     let x = case.input(1, &device);
     let analytic = critic
-        .input_gradient(x.clone())
+        .input_gradient(&critic.weights(), x.clone())
         .try_into_vec_as::<f32>()
         .unwrap();
     let base = x.try_into_vec_as::<f32>().unwrap();
@@ -171,7 +171,13 @@ fn penalty_weight_gradient_matches_finite_differences(case: Case) {
     let critic = case.critic(&device);
     let (real, fake) = (case.input(2, &device), case.input(3, &device));
     let alpha = Tensor::<1>::from_data(TensorData::new(vec![0.3f32, 0.8], [2]), &device);
-    let penalty = critic.gradient_penalty(real.clone(), fake.clone(), alpha.clone(), 10.0);
+    let penalty = critic.gradient_penalty(
+        &critic.weights(),
+        real.clone(),
+        fake.clone(),
+        alpha.clone(),
+        10.0,
+    );
     let analytic = penalty_gradients(&case, &critic, penalty);
 
     let mut weights = Checkpoint::new();
@@ -186,6 +192,7 @@ fn penalty_weight_gradient_matches_finite_differences(case: Case) {
     let evaluate = |ckpt: &Checkpoint| -> (f32, Vec<Tensor<5>>) {
         let c = read_module(critic.valid(), "c", ckpt).unwrap();
         let p = c.gradient_penalty(
+            &c.weights(),
             real.clone().inner(),
             fake.clone().inner(),
             alpha.clone().inner(),

@@ -83,6 +83,54 @@ pub fn evaluate_model(
     if samples == 0 {
         return Err(input_error!("--samples 0: need at least one sample"));
     }
+    let gray;
+    let exemplar = if exemplar.channels != config.channels && exemplar.is_gray() {
+        gray = exemplar.to_gray(); // a model trained as gray on a gray photo stored as RGB
+        &gray
+    } else {
+        exemplar
+    };
+    let sifid = sifid_of_model(config, weights, exemplar, samples, seed, device)?;
+    let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
+    // One --tile sample per seed, each cut at another phase of the pattern (an offset within
+    // the tile's period keeps it a tile), so the seam score does not measure one phase.
+    let mut tiles = Vec::with_capacity(samples);
+    for s in 0..samples as u64 {
+        let golden = |n: usize, k: u64| ((k as f64 * 0.618_033_988_75).fract() * n as f64) as i64;
+        let painter = Synth::new(config.clone(), weights.clone())
+            .seed(seed.wrapping_add(s))
+            .device(device)
+            .tile(&[h, w])
+            .offset(&[golden(h, s + 7), golden(w, s)])
+            .painter()?;
+        tiles.push(painter.render(&[0, 0], &[h, w]));
+    }
+    let tiles: Vec<&[f32]> = tiles.iter().map(Vec::as_slice).collect();
+    let period = |axis: usize| (weights.k[axis].abs() * config.crop as f32) as f64;
+    Ok(ModelReport {
+        metric: SIFID_NAME,
+        sifid,
+        seam_model_tile: seam_score_of_tiles(&tiles, h, w, c)?,
+        seam_exemplar: seam_score(&exemplar.values, h, w, c)?,
+        period_model: [period(0), period(1)],
+        period_exemplar: dominant_period(&exemplar.values, h, w, c),
+        width: w,
+        height: h,
+        seed,
+    })
+}
+
+/// SIFID of `samples` samples (seeds `seed`, `seed + 1`, ...) of the model at the exemplar's
+/// size against the exemplar (values in [-1, 1], `[h, w, c]`).
+pub fn sifid_of_model(
+    config: &crate::generator::GeneratorConfig,
+    weights: &crate::generator::GeneratorWeights,
+    exemplar: &crate::exemplar::Exemplar,
+    samples: usize,
+    seed: u64,
+    device: crate::device::DeviceChoice,
+) -> Result<Summary> {
+    use crate::synth::Synth;
     if exemplar.channels != config.channels {
         return Err(input_error!(
             "the exemplar has {} channels but the model paints {}; evaluate a model with the exemplar it was trained on",
@@ -103,32 +151,7 @@ pub fn evaluate_model(
         let fake = Gaussian::fit(&stem.features(&to_unit_rgb(&fake, c)?, h, w)?)?;
         sifids.push(frechet_distance(&real, &fake));
     }
-    // One --tile sample per seed, each cut at another phase of the pattern (an offset within
-    // the tile's period keeps it a tile), so the seam score does not measure one phase.
-    let mut tiles = Vec::with_capacity(samples);
-    for s in 0..samples as u64 {
-        let golden = |n: usize, k: u64| ((k as f64 * 0.618_033_988_75).fract() * n as f64) as i64;
-        let painter = Synth::new(config.clone(), weights.clone())
-            .seed(seed.wrapping_add(s))
-            .device(device)
-            .tile(&[h, w])
-            .offset(&[golden(h, s + 7), golden(w, s)])
-            .painter()?;
-        tiles.push(painter.render(&[0, 0], &[h, w]));
-    }
-    let tiles: Vec<&[f32]> = tiles.iter().map(Vec::as_slice).collect();
-    let period = |axis: usize| (weights.k[axis].abs() * config.crop as f32) as f64;
-    Ok(ModelReport {
-        metric: SIFID_NAME,
-        sifid: Summary::of(sifids),
-        seam_model_tile: seam_score_of_tiles(&tiles, h, w, c)?,
-        seam_exemplar: seam_score(&exemplar.values, h, w, c)?,
-        period_model: [period(0), period(1)],
-        period_exemplar: dominant_period(&exemplar.values, h, w, c),
-        width: w,
-        height: h,
-        seed,
-    })
+    Ok(Summary::of(sifids))
 }
 
 #[cfg(test)]

@@ -72,6 +72,22 @@ pub struct TrainConfig {
     /// crop's density, the mean |sdf| of its truncated SDF; `synth --density` then sets it.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub density: bool,
+    /// Initial K per generator axis (rows, cols; depth first in 3D). Unset: 1, as the paper.
+    /// `ipfn train` sets it from the exemplar's measured period ([`super::recipe`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub k_init: Option<Vec<f32>>,
+    /// Train on the first channel only (and keep alpha): for a gray photo stored as RGB, whose
+    /// channels are all equal. `ipfn train` sets it when it finds one.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub gray: bool,
+    /// A time budget such as `15m`, `90s` or `1h30m`: after a few iterations the run plans how
+    /// many fit in the budget, sets `iterations` to that, and clears `time`; it also stops when
+    /// the budget is spent. Unset: `iterations` alone.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time: Option<String>,
+    /// Samples scored (SIFID against the exemplar, at its size) at each checkpoint of an image
+    /// run; the best-scoring generator is kept as `best.ipfn`. 0: no scoring.
+    pub score_samples: usize,
 }
 
 fn is_default_sdf_scale(v: &f32) -> bool {
@@ -111,6 +127,10 @@ impl Default for TrainConfig {
             volume: false,
             sdf_scale: DEFAULT_SDF_SCALE,
             density: false,
+            k_init: None,
+            gray: false,
+            time: None,
+            score_samples: 2,
         }
     }
 }
@@ -163,11 +183,23 @@ impl TrainConfig {
         })
     }
 
-    /// Reads a TOML config file.
-    pub fn from_file(path: &Path) -> Result<Self> {
+    /// Reads a TOML config file, and the keys it sets.
+    pub fn from_file(path: &Path) -> Result<(Self, std::collections::BTreeSet<String>)> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| input_error!("{}: cannot read: {e}", path.display()))?;
-        Self::from_toml(&text, path)
+        Ok((Self::from_toml(&text, path)?, Self::keys_in(&text)))
+    }
+
+    /// The keys a TOML config sets (a recipe keeps them as given).
+    pub fn keys_in(text: &str) -> std::collections::BTreeSet<String> {
+        text.parse::<toml::Table>()
+            .map(|t| t.keys().cloned().collect())
+            .unwrap_or_default()
+    }
+
+    /// The time budget, if `time` is set.
+    pub fn time_budget(&self) -> Result<Option<std::time::Duration>> {
+        self.time.as_deref().map(parse_duration).transpose()
     }
 
     pub fn to_toml(&self) -> String {
@@ -239,6 +271,15 @@ impl TrainConfig {
                 "lr and resize must be positive, gp_lambda and shift not negative"
             ));
         }
+        self.time_budget()?;
+        if let Some(k) = &self.k_init
+            && (k.len() != kind.generator_axes() || k.iter().any(|v| !v.is_finite() || *v == 0.0))
+        {
+            return Err(input_error!(
+                "k_init = {k:?}: one finite, non-zero K per generator axis ({})",
+                kind.generator_axes()
+            ));
+        }
         if let RunKind::Volume { .. } = kind {
             if self.resize != 1.0 {
                 return Err(input_error!(
@@ -272,6 +313,35 @@ impl TrainConfig {
     }
 }
 
+/// Parses a duration such as `15m`, `90s`, `1h30m` or `2h` (a bare number is seconds).
+pub fn parse_duration(text: &str) -> Result<std::time::Duration> {
+    let bad = || input_error!("--time {text}: expected a duration such as 15m, 90s or 1h30m");
+    let mut seconds = 0f64;
+    let mut number = String::new();
+    for ch in text.trim().chars() {
+        match ch {
+            '0'..='9' | '.' => number.push(ch),
+            'h' | 'm' | 's' => {
+                let unit = match ch {
+                    'h' => 3600.0,
+                    'm' => 60.0,
+                    _ => 1.0,
+                };
+                seconds += number.parse::<f64>().map_err(|_| bad())? * unit;
+                number.clear();
+            }
+            _ => return Err(bad()),
+        }
+    }
+    if !number.is_empty() {
+        seconds += number.parse::<f64>().map_err(|_| bad())?;
+    }
+    if !(seconds.is_finite() && seconds > 0.0) {
+        return Err(bad());
+    }
+    Ok(std::time::Duration::from_secs_f64(seconds))
+}
+
 /// Declares [`TrainOverrides`]: one `--flag` per listed config key, its help, and whether a
 /// resumed run may change it. A key is added to the command line here, once.
 macro_rules! overrides {
@@ -286,6 +356,13 @@ macro_rules! overrides {
             /// Applies the flags to `config`.
             pub fn apply(&self, config: &mut TrainConfig) {
                 $( if let Some(v) = self.$key.clone() { Override::set(&mut config.$key, v); } )*
+            }
+
+            /// The config keys these flags set.
+            pub fn given(&self) -> Vec<&'static str> {
+                let mut keys = Vec::new();
+                $( if self.$key.is_some() { keys.push(stringify!($key)); } )*
+                keys
             }
 
             /// The flags given that change the model or the random streams, which a resumed run
@@ -323,6 +400,10 @@ impl Override<String> for Option<String> {
 overrides! {
     /// Total iterations (with --resume: the new total).
     iterations: u64, resumable;
+    /// Train for this long, e.g. 15m, 90s or 1h30m: the run plans its iterations from the
+    /// speed of its first ones and stops when the budget is spent. Default, when neither --time
+    /// nor --iterations (nor a config's `iterations`) is given: 15m, on any device.
+    time: String, resumable, value_name = "DURATION";
     /// Crops per step.
     batch: usize, fixed;
     /// Crop size in pixels, a multiple of 16.

@@ -67,7 +67,11 @@ impl ExemplarSource {
     pub fn load(&self, config: &TrainConfig) -> Result<(Exemplar, Option<MapSet>)> {
         let resize = config.resize;
         match self {
-            Self::Image(path) => Ok((load_exemplar(path, resize)?, None)),
+            Self::Image(path) => {
+                let exemplar = load_exemplar(path, resize)?;
+                let gray = config.gray && exemplar.channels >= 3;
+                Ok((if gray { exemplar.to_gray() } else { exemplar }, None))
+            }
             Self::Volume(path) => Ok((
                 read_sdf_volume(path, config.sdf_scale)?.into_exemplar(),
                 None,

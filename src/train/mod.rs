@@ -13,7 +13,9 @@ pub mod adam;
 pub mod config;
 pub mod data;
 pub mod fakes;
+pub mod recipe;
 pub mod run;
+pub mod score;
 pub mod step;
 
 use std::path::{Path, PathBuf};
@@ -53,6 +55,8 @@ pub struct Trainer {
     adam_critic: Adam,
     /// Iterations completed.
     pub iteration: u64,
+    /// The best score so far (SIFID at a checkpoint; lower is better) and its iteration.
+    best: Option<(f64, u64)>,
 }
 
 impl Trainer {
@@ -73,11 +77,16 @@ impl Trainer {
         config.validate(&kind, &exemplar, source.main_path())?;
         let device = device.clone().autodiff();
         let channels = exemplar.channels;
-        let generator = initialise(
+        let mut generator = initialise(
             config.generator_config(&kind, channels).init(&device),
             config.seed,
             stream::INIT_GENERATOR,
         );
+        if let Some(k) = &config.k_init {
+            let mut weights = generator.weights();
+            weights.k = k.clone();
+            generator = Generator::from_weights(&weights, &device);
+        }
         let critic = initialise(
             config.critic_config(&kind, channels).init(&device),
             config.seed,
@@ -96,6 +105,7 @@ impl Trainer {
             generator,
             critic,
             iteration: 0,
+            best: None,
         })
     }
 
@@ -133,6 +143,11 @@ impl Trainer {
         }
         let mut trainer = Self::resume(run_dir, overrides.iterations, device)?;
         overrides.apply(&mut trainer.config);
+        if overrides.time.is_some() && overrides.iterations.is_none() {
+            // A new budget plans the rest of the run afresh.
+            trainer.config.iterations = recipe::BUDGET_ITERATIONS;
+        }
+        trainer.config.time_budget()?;
         Ok(trainer)
     }
 
@@ -182,6 +197,7 @@ impl Trainer {
             .meta(ITERATION_KEY)?
             .parse()
             .map_err(|_| input_error!("{}: unreadable iteration count", latest.display()))?;
+        let best = run::read_best(&ckpt);
         Ok(Self {
             config,
             kind,
@@ -195,6 +211,7 @@ impl Trainer {
             adam_generator,
             adam_critic,
             iteration,
+            best,
         })
     }
 

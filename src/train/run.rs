@@ -4,6 +4,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 use super::step::{IterationStats, stream};
 use super::{RunKind, Trainer};
@@ -20,6 +21,18 @@ pub(super) const ITERATION_KEY: &str = "iteration";
 pub(super) const EXEMPLAR_KEY: &str = "exemplar";
 pub(super) const FINGERPRINT_KEY: &str = "exemplar_fingerprint";
 const CRITIC_CONFIG_KEY: &str = "critic_config";
+/// The best score so far and its iteration (`"SIFID ITERATION"`), so a resumed run keeps it.
+const BEST_KEY: &str = "best_sifid";
+
+/// Iterations timed before a run with a time budget plans its length.
+pub const PLAN_AFTER: u64 = 3;
+
+/// The best score stored in a run's checkpoint.
+pub(super) fn read_best(checkpoint: &Checkpoint) -> Option<(f64, u64)> {
+    let text = checkpoint.metadata.get(BEST_KEY)?;
+    let (score, iteration) = text.split_once(' ')?;
+    Some((score.parse().ok()?, iteration.parse().ok()?))
+}
 
 /// How [`Trainer::run`] ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -32,25 +45,38 @@ pub enum RunEnd {
 
 impl Trainer {
     /// Trains until `config.iterations` or until `stop` is raised, appending `metrics.csv`,
-    /// saving checkpoints and previews on schedule (and a checkpoint when stopped), and calling
-    /// `on_iteration` after each iteration. Prepares the run folder first.
+    /// saving checkpoints (scored, the best kept as `best.ipfn`) and previews on schedule (and a
+    /// checkpoint when stopped), and calling `on_iteration` after each iteration. With a time
+    /// budget (`config.time`) the run plans its length after [`PLAN_AFTER`] iterations and ends
+    /// when the budget is spent. Prepares the run folder first.
     pub fn run(
         &mut self,
         stop: &AtomicBool,
         mut on_iteration: impl FnMut(&Trainer, &IterationStats),
     ) -> Result<RunEnd> {
         self.prepare_run_dir()?;
-        let (total, cfg) = (self.config.iterations, self.config.clone());
-        while self.iteration < total {
-            let stats = self.step();
+        let budget = self.config.time_budget()?;
+        let (clock, first) = (Instant::now(), self.iteration);
+        while self.iteration < self.config.iterations {
+            let mut stats = self.step();
+            let it = self.iteration;
+            if let Some(budget) = budget {
+                self.follow_budget(budget, clock.elapsed(), it - first)?;
+            }
+            let (total, cfg) = (self.config.iterations, &self.config);
+            let stopped = stop.load(Ordering::SeqCst);
+            let checkpoint = it.is_multiple_of(cfg.checkpoint_every) || it == total || stopped;
+            let preview = it.is_multiple_of(cfg.preview_every) || it == total;
+            if checkpoint {
+                stats.sifid = self.score()?;
+            }
             self.append_metrics(&stats)?;
             on_iteration(self, &stats);
-            let it = self.iteration;
-            let stopped = stop.load(Ordering::SeqCst);
-            if it.is_multiple_of(cfg.checkpoint_every) || it == total || stopped {
+            if checkpoint {
+                self.keep_if_best(stats.sifid)?;
                 self.save_checkpoint()?;
             }
-            if it.is_multiple_of(cfg.preview_every) || it == total {
+            if preview {
                 self.save_preview()?;
             }
             if stopped {
@@ -60,18 +86,63 @@ impl Trainer {
         Ok(RunEnd::Finished)
     }
 
-    /// Writes `latest.ipfn` (full training state, also a synth-ready model) and
-    /// `checkpoints/iter-NNNNNN.ipfn` (the generator alone). Both are written atomically.
-    pub fn save_checkpoint(&self) -> Result<PathBuf> {
+    /// A time budget: after [`PLAN_AFTER`] iterations, `iterations` becomes what fits in the
+    /// rest of the budget at their speed (at most the planned total), and `time` is cleared so
+    /// that a resumed run continues to that count exactly; a spent budget ends the run now.
+    fn follow_budget(&mut self, budget: Duration, elapsed: Duration, done: u64) -> Result<()> {
+        let planned = if elapsed >= budget {
+            Some(self.iteration)
+        } else if self.config.time.is_some() && done == PLAN_AFTER {
+            let per_iteration = elapsed.as_secs_f64() / done as f64;
+            let more = ((budget - elapsed).as_secs_f64() / per_iteration) as u64;
+            Some((self.iteration + more).min(self.config.iterations))
+        } else {
+            None
+        };
+        if let Some(total) = planned {
+            self.config.iterations = total;
+            self.config.time = None;
+            crate::io::write_atomic(
+                &self.run_dir.join("config.toml"),
+                self.config.to_toml().as_bytes(),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Writes `best.ipfn` (the generator alone) when `score` beats the best so far.
+    fn keep_if_best(&mut self, score: Option<f64>) -> Result<()> {
+        let Some(score) = score.filter(|s| s.is_finite()) else {
+            return Ok(());
+        };
+        if self.best.is_some_and(|(best, _)| best <= score) {
+            return Ok(());
+        }
+        self.best = Some((score, self.iteration));
+        self.model_file().save(&self.run_dir.join("best.ipfn"))
+    }
+
+    /// The current generator as a model file, with the run's config and map set.
+    fn model_file(&self) -> Checkpoint {
         let (gen_config, weights) = self.model();
         let mut model = Checkpoint::new();
         weights.write_to(&gen_config, &mut model);
         let meta = &mut model.metadata;
         meta.insert(TRAIN_CONFIG_KEY.into(), self.config.to_toml());
         meta.insert(ITERATION_KEY.into(), self.iteration.to_string());
+        if let Some((score, iteration)) = self.best {
+            meta.insert(BEST_KEY.into(), format!("{score} {iteration}"));
+        }
         if let Some(maps) = &self.maps {
             maps.write_to(&mut model);
         }
+        model
+    }
+
+    /// Writes `latest.ipfn` (full training state, also a synth-ready model) and
+    /// `checkpoints/iter-NNNNNN.ipfn` (the generator alone). Both are written atomically.
+    pub fn save_checkpoint(&self) -> Result<PathBuf> {
+        let model = self.model_file();
         let path = create_dir(&self.run_dir.join("checkpoints"))?
             .join(format!("iter-{:06}.ipfn", self.iteration));
         model.save(&path)?;
@@ -175,9 +246,10 @@ impl Trainer {
             .open(&path)
             .map_err(err)?;
         let k: Vec<String> = s.k.iter().map(f32::to_string).collect();
+        let sifid = s.sifid.map(|v| v.to_string()).unwrap_or_default();
         writeln!(
             file,
-            "{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{sifid}",
             s.iteration,
             s.wasserstein,
             s.penalty,
@@ -202,5 +274,5 @@ pub fn metrics_header(dims: usize) -> String {
     } else {
         "k_rows,k_cols"
     };
-    format!("iteration,wasserstein,penalty,generator_loss,{k},iterations_per_second\n")
+    format!("iteration,wasserstein,penalty,generator_loss,{k},iterations_per_second,sifid\n")
 }

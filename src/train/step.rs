@@ -100,6 +100,8 @@ pub struct IterationStats {
     /// The learned period K per axis, in axis order (rows, columns; depth first for volumes).
     pub k: Vec<f32>,
     pub iterations_per_second: f32,
+    /// The generator's score at a checkpoint (SIFID against the exemplar; lower is better).
+    pub sifid: Option<f64>,
     /// Where the iteration's time went.
     pub times: StepTimes,
 }
@@ -108,8 +110,12 @@ impl IterationStats {
     /// The losses and K for a progress line: `W 0.1234  gp 0.0123  G -0.5678  K 1.0000 1.0000`.
     pub fn summary(&self) -> String {
         let k: Vec<String> = self.k.iter().map(|k| format!("{k:.4}")).collect();
+        let sifid = self
+            .sifid
+            .map(|v| format!("  SIFID {v:.2}"))
+            .unwrap_or_default();
         format!(
-            "W {:.4}  gp {:.4}  G {:.4}  K {}",
+            "W {:.4}  gp {:.4}  G {:.4}  K {}{sifid}",
             self.wasserstein,
             self.penalty,
             self.generator_loss,
@@ -171,11 +177,12 @@ impl Trainer {
             times.critic_data += t.elapsed().as_secs_f64();
 
             let t = Instant::now();
-            let d_real = self.critic.forward(real.clone()).mean();
-            let d_fake = self.critic.forward(fake.clone()).mean();
+            let weights = self.critic.weights(); // shared by the scores and the penalty
+            let d_real = self.critic.score(&weights, real.clone()).mean();
+            let d_fake = self.critic.score(&weights, fake.clone()).mean();
             let penalty = self
                 .critic
-                .gradient_penalty(real, fake, alpha, cfg.gp_lambda);
+                .gradient_penalty(&weights, real, fake, alpha, cfg.gp_lambda);
             let loss = d_fake.clone() - d_real.clone() + penalty.clone();
             stats.wasserstein = (d_real - d_fake).into_scalar::<f32>();
             stats.penalty = penalty.into_scalar::<f32>();

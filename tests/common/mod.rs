@@ -120,7 +120,8 @@ preview_every = 100
 log_every = 100
 "#;
 
-/// The last row of a run's `metrics.csv`, as numbers.
+/// The last row of a run's `metrics.csv`, as numbers (empty fields, such as the score of a run
+/// that is not scored, left out).
 pub fn last_metrics_row(run: &Path) -> Vec<f32> {
     let metrics = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
     metrics
@@ -128,6 +129,7 @@ pub fn last_metrics_row(run: &Path) -> Vec<f32> {
         .last()
         .unwrap()
         .split(',')
+        .filter(|v| !v.is_empty())
         .map(|v| v.parse().unwrap())
         .collect()
 }

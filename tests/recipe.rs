@@ -1,0 +1,198 @@
+//! Training settings from the exemplar (issue 16): the recipe measures the exemplar's period and
+//! channels and chooses the scale, crop and initial K; a time budget plans the run's length; the
+//! run scores its checkpoints (SIFID) and keeps the best as `best.ipfn`, which synth prefers.
+
+mod common;
+
+use common::{ipfn, stderr};
+use ipfn::checkpoint::Checkpoint;
+use ipfn::generator::GeneratorWeights;
+use ipfn::train::TrainConfig;
+
+/// A small generator and critic; neither crop, resize nor iterations: the recipe and the time
+/// budget choose them.
+const TINY: &str = r#"
+batch = 2
+critic_widths = [8, 16, 16, 16]
+hidden_layers = 3
+width = 16
+checkpoint_every = 5
+preview_every = 1000
+log_every = 1000
+"#;
+
+#[test]
+fn a_time_budget_plans_the_run_scores_it_and_keeps_the_best() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Bricks of 32 px: a period of 32 down and across, in a 128 px exemplar.
+    assert!(
+        ipfn(d, &["draw", "bricks", "--size", "128", "-o", "b.png"])
+            .status
+            .success()
+    );
+    std::fs::write(d.join("tiny.toml"), TINY).unwrap();
+    let out = ipfn(
+        d,
+        &[
+            "train",
+            "b.png",
+            "--config",
+            "tiny.toml",
+            "--time",
+            "12s",
+            "--out",
+            "runs/b",
+        ],
+    );
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    for said in ["px down", "crop 64", "K starts at", "time budget 12s"] {
+        assert!(err.contains(said), "the recipe should say '{said}': {err}");
+    }
+    // The plan replaced the budget by an iteration count, so a resume continues exactly.
+    let config = std::fs::read_to_string(d.join("runs/b/config.toml")).unwrap();
+    let config = TrainConfig::from_toml(&config, std::path::Path::new("config.toml")).unwrap();
+    assert_eq!(config.time, None);
+    assert!(
+        config.iterations >= 3 && config.iterations < 1_000_000,
+        "{}",
+        config.iterations
+    );
+    assert_eq!((config.crop, config.resize), (64, 1.0));
+    // One period is half a crop: K = 1 lines the lowest octave up with two periods.
+    let k = config.k_init.expect("the recipe sets K");
+    assert!(k.iter().all(|k| (k - 1.0).abs() < 0.05), "{k:?}");
+    // Every checkpoint row carries a finite score; others leave it empty.
+    let metrics = std::fs::read_to_string(d.join("runs/b/metrics.csv")).unwrap();
+    assert!(metrics.lines().next().unwrap().ends_with(",sifid"));
+    let scores: Vec<f64> = metrics
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.rsplit(',').next().filter(|v| !v.is_empty()))
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert!(!scores.is_empty() && scores.iter().all(|s| s.is_finite() && *s >= 0.0));
+    // best.ipfn holds the best-scoring checkpoint's generator, and synth prefers it.
+    let best = Checkpoint::load(&d.join("runs/b/best.ipfn")).unwrap();
+    GeneratorWeights::read_from(&best).unwrap();
+    let lowest = scores.iter().cloned().fold(f64::INFINITY, f64::min);
+    let latest = Checkpoint::load(&d.join("runs/b/latest.ipfn")).unwrap();
+    let (score, _) = latest.meta("best_sifid").unwrap().split_once(' ').unwrap();
+    assert!((score.parse::<f64>().unwrap() - lowest).abs() <= 1e-9 * lowest.max(1.0));
+    let synth = ipfn(d, &["synth", "--size", "64", "--out", "s.png"]);
+    assert!(synth.status.success(), "{}", stderr(&synth));
+    assert!(stderr(&synth).contains("best.ipfn"), "{}", stderr(&synth));
+    let by_folder = ipfn(
+        d,
+        &[
+            "synth", "--model", "runs/b", "--size", "64", "--out", "t.png",
+        ],
+    );
+    assert!(by_folder.status.success(), "{}", stderr(&by_folder));
+    assert!(stderr(&by_folder).contains("best.ipfn"));
+}
+
+#[test]
+fn a_gray_photo_stored_as_rgb_trains_and_paints_as_gray() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Stripes in gray, stored with three equal channels.
+    let gray: Vec<f32> = ipfn::procedural::stripes(96, 96, 24.0)
+        .chunks_exact(3)
+        .flat_map(|p| [p[0] * 2.0 - 1.0; 3])
+        .collect();
+    ipfn::io::write_png(&d.join("g.png"), 96, 96, 3, &gray).unwrap();
+    std::fs::write(d.join("tiny.toml"), TINY).unwrap();
+    let out = ipfn(
+        d,
+        &[
+            "train",
+            "g.png",
+            "--config",
+            "tiny.toml",
+            "--crop",
+            "32",
+            "--iterations",
+            "2",
+            "--out",
+            "run",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("trained as gray"), "{}", stderr(&out));
+    let model = Checkpoint::load(&d.join("run/latest.ipfn")).unwrap();
+    let (config, _) = GeneratorWeights::read_from(&model).unwrap();
+    assert_eq!(config.channels, 1);
+    let synth = ipfn(
+        d,
+        &["synth", "--model", "run", "--size", "40", "--out", "s.png"],
+    );
+    assert!(synth.status.success(), "{}", stderr(&synth));
+    let image = image::open(d.join("s.png")).unwrap();
+    assert_eq!(image.color(), image::ColorType::L8);
+    // `ipfn eval` compares the gray model with the RGB photo it came from.
+    let eval = ipfn(
+        d,
+        &[
+            "eval",
+            "--model",
+            "run/latest.ipfn",
+            "--exemplar",
+            "g.png",
+            "--samples",
+            "1",
+        ],
+    );
+    assert!(eval.status.success(), "{}", stderr(&eval));
+}
+
+#[test]
+fn flags_and_config_keys_override_the_recipe() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    assert!(
+        ipfn(d, &["draw", "bricks", "--size", "128", "-o", "b.png"])
+            .status
+            .success()
+    );
+    let config = format!("{TINY}\ncrop = 32\nresize = 1.0\nk_init = [0.5, 2.0]\n");
+    std::fs::write(d.join("c.toml"), config).unwrap();
+    let out = ipfn(
+        d,
+        &[
+            "train",
+            "b.png",
+            "--config",
+            "c.toml",
+            "--iterations",
+            "1",
+            "--out",
+            "run",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let saved = std::fs::read_to_string(d.join("run/config.toml")).unwrap();
+    let saved = TrainConfig::from_toml(&saved, std::path::Path::new("config.toml")).unwrap();
+    assert_eq!((saved.crop, saved.resize, saved.iterations), (32, 1.0, 1));
+    assert_eq!(saved.k_init, Some(vec![0.5, 2.0]));
+    assert_eq!(
+        saved.time, None,
+        "an iteration count means no default budget"
+    );
+}
+
+#[test]
+fn durations_parse_and_bad_ones_are_one_line_errors() {
+    use ipfn::train::config::parse_duration;
+    assert_eq!(parse_duration("15m").unwrap().as_secs(), 900);
+    assert_eq!(parse_duration("1h30m").unwrap().as_secs(), 5400);
+    assert_eq!(parse_duration("90").unwrap().as_secs(), 90);
+    for bad in ["", "0s", "fast", "5x"] {
+        let e = parse_duration(bad).unwrap_err().to_string();
+        assert!(e.contains("--time") && !e.contains('\n'), "{e}");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = ipfn(dir.path(), &["train", "x.png", "--time", "soon"]);
+    common::assert_error(&out, &["--time soon"]);
+}

@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Training quality on real photographs at equal time budgets: for each exemplar, `ipfn train`
+# with the default recipe (settings from the exemplar; evaluated at best.ipfn) and with
+# configs/quick.toml as it ran before the recipe (K from 1, colour kept; evaluated at
+# latest.ipfn), each for the same --time, then `ipfn eval` (SIFID mean ± std over 8 samples, Keras
+# InceptionV3 stem). Prints one markdown table.
+#
+#   tools/measure-photos.sh BUDGET SEED EXEMPLAR...
+#   tools/measure-photos.sh 5m 0 ../shared/exemplars/brick.jpg ../shared/exemplars/marble.jpg
+#
+# Uses target/release/ipfn (build it first: cargo build --release). Work goes to
+# ${IPFN_MEASURE_DIR:-/tmp/ipfn-photos}. Both trainings of a photo run one after the other on
+# the whole machine.
+set -euo pipefail
+budget="$1"; seed="$2"; shift 2
+ipfn="$(cd "$(dirname "$0")/.." && pwd)/target/release/ipfn"
+work="${IPFN_MEASURE_DIR:-/tmp/ipfn-photos}"
+mkdir -p "$work"
+# The earlier quick preset as it ran before the recipe: K starts at 1 and colour stays colour.
+{ cat "$(dirname "$0")/../configs/quick.toml"; printf 'k_init = [1.0, 1.0]\ngray = false\n'; } \
+  > "$work/quick-before.toml"
+sifid() { # model exemplar -> "mean ± std"
+  "$ipfn" eval --model "$1" --exemplar "$2" --samples 8 --json 2>/dev/null |
+    python3 -c 'import json,sys; r=json.load(sys.stdin)["sifid"]; print(f"{r[\"mean\"]:.2f} ± {r[\"std\"]:.2f}")'
+}
+echo "| exemplar | recipe ($budget, seed $seed) | quick.toml ($budget, seed $seed) | recipe / quick |"
+echo "|---|---|---|---|"
+for photo in "$@"; do
+  name="$(basename "${photo%.*}")"
+  for how in recipe quick; do
+    run="$work/$name-$how-$budget-s$seed"
+    rm -rf "$run"
+    extra=()
+    [ "$how" = quick ] && extra=(--config "$work/quick-before.toml")
+    "$ipfn" train "$photo" "${extra[@]}" --time "$budget" --seed "$seed" --out "$run" --quiet
+  done
+  r="$(sifid "$work/$name-recipe-$budget-s$seed" "$photo")"
+  q="$(sifid "$work/$name-quick-$budget-s$seed/latest.ipfn" "$photo")"
+  ratio="$(python3 -c "print(f'{float(\"${r%% *}\")/float(\"${q%% *}\"):.2f}')")"
+  echo "| $name | $r | $q | $ratio |"
+done
