@@ -38,25 +38,32 @@ impl Exemplar {
     }
 
     /// Resamples to `width x height` with a Lanczos-3 filter (scaled to the output's footprint
-    /// when shrinking, so it anti-aliases).
+    /// when shrinking, so it anti-aliases), any number of channels (a map set's stack too), four
+    /// at a time.
     pub fn resized(&self, width: usize, height: usize) -> Self {
         // The image crate's float resampling clamps to [0, 1], so resample unit values.
         let c = self.channels;
-        let mut rgba = image::Rgba32FImage::new(self.width as u32, self.height as u32);
-        for (i, px) in rgba.pixels_mut().enumerate() {
-            let mut v = [0f32; 4];
-            for (k, slot) in v.iter_mut().enumerate().take(c) {
-                *slot = (self.values[i * c + k] + 1.0) * 0.5;
+        let mut unit = vec![0f32; width * height * c];
+        for first in (0..c).step_by(4) {
+            let group = (c - first).min(4);
+            let mut rgba = image::Rgba32FImage::new(self.width as u32, self.height as u32);
+            for (i, px) in rgba.pixels_mut().enumerate() {
+                let mut v = [0f32; 4];
+                for (k, slot) in v.iter_mut().enumerate().take(group) {
+                    *slot = (self.values[i * c + first + k] + 1.0) * 0.5;
+                }
+                *px = image::Rgba(v);
             }
-            *px = image::Rgba(v);
+            let out = image::imageops::resize(
+                &rgba,
+                width as u32,
+                height as u32,
+                image::imageops::FilterType::Lanczos3,
+            );
+            for (i, p) in out.pixels().enumerate() {
+                unit[i * c + first..i * c + first + group].copy_from_slice(&p.0[..group]);
+            }
         }
-        let out = image::imageops::resize(
-            &rgba,
-            width as u32,
-            height as u32,
-            image::imageops::FilterType::Lanczos3,
-        );
-        let unit: Vec<f32> = out.pixels().flat_map(|p| p.0[..c].to_vec()).collect();
         Self::from_unit(width, height, c, &unit)
     }
 

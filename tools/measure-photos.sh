@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Training quality on real photographs at equal time budgets: for each exemplar, `ipfn train`
-# with the default recipe (settings from the exemplar; evaluated at best.ipfn) and with
-# configs/quick.toml as it ran before the recipe (K from 1, colour kept; evaluated at
-# latest.ipfn), each for the same --time, then `ipfn eval` (SIFID mean ± std over 8 samples, Keras
+# Training quality on real photographs at equal time budgets, an ablation of the recipe: for
+# each exemplar, `ipfn train` with configs/quick.toml, once with the recipe's choices from the
+# exemplar (K from its period, gray for a gray photo; evaluated at best.ipfn, the default
+# model) and once as the preset ran before (K from 1, colour kept; evaluated at latest.ipfn),
+# each for the same --time, then `ipfn eval` (SIFID mean ± std over 8 samples, Keras
 # InceptionV3 stem). Prints one markdown table.
 #
 #   tools/measure-photos.sh BUDGET SEED EXEMPLAR...
@@ -17,11 +18,13 @@ ipfn="$(cd "$(dirname "$0")/.." && pwd)/target/release/ipfn"
 work="${IPFN_MEASURE_DIR:-/tmp/ipfn-photos}"
 mkdir -p "$work"
 # The earlier quick preset as it ran before the recipe: K starts at 1 and colour stays colour.
-{ cat "$(dirname "$0")/../configs/quick.toml"; printf 'k_init = [1.0, 1.0]\ngray = false\n'; } \
-  > "$work/quick-before.toml"
+quick="$(dirname "$0")/../configs/quick.toml"
+{ cat "$quick"; printf 'k_init = [1.0, 1.0]\ngray = false\n'; } > "$work/quick-before.toml"
+# The same preset with the recipe's choices from the exemplar (K, gray).
+grep -v -E '^iterations ' "$quick" > "$work/recipe.toml"
 sifid() { # model exemplar -> "mean ± std"
   "$ipfn" eval --model "$1" --exemplar "$2" --samples 8 --json 2>/dev/null |
-    python3 -c 'import json,sys; r=json.load(sys.stdin)["sifid"]; print(f"{r[\"mean\"]:.2f} ± {r[\"std\"]:.2f}")'
+    python3 -c 'import json,sys; r=json.load(sys.stdin)["sifid"]; print("%.2f ± %.2f" % (r["mean"], r["std"]))'
 }
 echo "| exemplar | recipe ($budget, seed $seed) | quick.toml ($budget, seed $seed) | recipe / quick |"
 echo "|---|---|---|---|"
@@ -29,13 +32,15 @@ for photo in "$@"; do
   name="$(basename "${photo%.*}")"
   for how in recipe quick; do
     run="$work/$name-$how-$budget-s$seed"
+    # IPFN_MEASURE_REUSE=1 scores runs already there instead of training them again.
+    [ "${IPFN_MEASURE_REUSE:-0}" = 1 ] && [ -f "$run/latest.ipfn" ] && continue
     rm -rf "$run"
-    extra=()
-    [ "$how" = quick ] && extra=(--config "$work/quick-before.toml")
-    "$ipfn" train "$photo" "${extra[@]}" --time "$budget" --seed "$seed" --out "$run" --quiet
+    config="$work/recipe.toml"
+    [ "$how" = quick ] && config="$work/quick-before.toml"
+    "$ipfn" train "$photo" --config "$config" --time "$budget" --seed "$seed" --out "$run" --quiet
   done
   r="$(sifid "$work/$name-recipe-$budget-s$seed" "$photo")"
   q="$(sifid "$work/$name-quick-$budget-s$seed/latest.ipfn" "$photo")"
-  ratio="$(python3 -c "print(f'{float(\"${r%% *}\")/float(\"${q%% *}\"):.2f}')")"
+  ratio="$(python3 -c "print('%.2f' % (${r%% *} / ${q%% *}))")"
   echo "| $name | $r | $q | $ratio |"
 done

@@ -75,39 +75,7 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
             ));
             t
         }
-        None => {
-            let source: ExemplarSource = match (&args.exemplar, &args.maps) {
-                (Some(image), _) => image.into(),
-                (None, Some(files)) => {
-                    MapFiles::new(files.clone(), args.normal_maps.as_deref(), args.resize_maps)?
-                        .into()
-                }
-                (None, None) => {
-                    return Err(input_error!(
-                        "no exemplar given: `ipfn train IMAGE` (or `--maps A.png,B.png,...`) starts a run, `ipfn train --resume runs/NAME` continues one"
-                    ));
-                }
-            };
-            let (mut config, mut explicit) = match &args.config {
-                Some(path) => TrainConfig::from_file(path)?,
-                None => (TrainConfig::default(), Default::default()),
-            };
-            args.overrides.apply(&mut config);
-            explicit.extend(args.overrides.given().into_iter().map(String::from));
-            let chosen = settle(&mut config, &source, &explicit)?;
-            let run_dir = args
-                .out
-                .clone()
-                .unwrap_or_else(|| default_run_dir(source.main_path()));
-            let trainer = Trainer::start(config, source, &run_dir, &device)?;
-            for line in chosen {
-                say(line); // after the run's settings were checked, so an error stays one line
-            }
-            if let Some(maps) = trainer.maps() {
-                say(format!("map set: {}", maps.describe()));
-            }
-            trainer
-        }
+        None => start(&args, choice, &say)?,
     };
     let total = trainer.config.iterations;
     let length = match &trainer.config.time {
@@ -168,6 +136,42 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
         latest.display()
     ));
     Ok(())
+}
+
+/// A new run: the exemplar or map set, the config file and flags, then the settings the
+/// recipe chooses from the exemplar (printed once the run's settings are checked, so that an
+/// error stays one line).
+fn start(args: &TrainArgs, choice: DeviceChoice, say: &impl Fn(String)) -> Result<Trainer> {
+    let device = choice.training_device()?;
+    let source: ExemplarSource = match (&args.exemplar, &args.maps) {
+        (Some(image), _) => image.into(),
+        (None, Some(files)) => {
+            MapFiles::new(files.clone(), args.normal_maps.as_deref(), args.resize_maps)?.into()
+        }
+        (None, None) => {
+            return Err(input_error!(
+                "no exemplar given: `ipfn train IMAGE` (or `--maps A.png,B.png,...`) starts a run, `ipfn train --resume runs/NAME` continues one"
+            ));
+        }
+    };
+    let (mut config, mut explicit) = match &args.config {
+        Some(path) => TrainConfig::from_file(path)?,
+        None => (TrainConfig::default(), Default::default()),
+    };
+    args.overrides.apply(&mut config);
+    explicit.extend(args.overrides.given().into_iter().map(String::from));
+    let on_gpu = !matches!(choice, DeviceChoice::Cpu | DeviceChoice::Flex);
+    let chosen = settle(&mut config, &source, &explicit, on_gpu)?;
+    let run_dir = args
+        .out
+        .clone()
+        .unwrap_or_else(|| default_run_dir(source.main_path()));
+    let trainer = Trainer::start(config, source, &run_dir, &device)?;
+    chosen.into_iter().for_each(say);
+    if let Some(maps) = trainer.maps() {
+        say(format!("map set: {}", maps.describe()));
+    }
+    Ok(trainer)
 }
 
 /// The flag Ctrl-C raises: the run then ends after its current iteration and a checkpoint. A
