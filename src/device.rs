@@ -95,15 +95,20 @@ pub fn wgpu_is_software() -> bool {
     false
 }
 
-/// Whether wgpu sees a real GPU (discrete, integrated or virtual) on any backend: a machine
-/// with only software adapters (lavapipe, llvmpipe through GL, WARP) has none.
+/// Whether wgpu sees a real GPU (discrete, integrated or virtual) on its primary backends
+/// (Vulkan, Metal, DX12), where every GPU shows up: a machine with only software adapters
+/// (lavapipe, WARP) has none. GL is not asked: its EGL probe prints to stderr on headless
+/// machines, and a GPU reachable only through GL is left to `--device wgpu`.
 #[cfg(feature = "wgpu")]
 pub fn wgpu_has_gpu() -> bool {
     use burn::tensor::wgpu::wgpu;
+    if !gpu_device_node_present() {
+        return false; // no probe: Mesa's drivers print warnings to stderr on headless machines
+    }
     let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle();
-    descriptor.backends = wgpu::Backends::all();
+    descriptor.backends = wgpu::Backends::PRIMARY;
     let instance = wgpu::Instance::new(descriptor);
-    let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+    let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::PRIMARY));
     adapters.iter().any(|a| {
         matches!(
             a.get_info().device_type,
@@ -118,6 +123,20 @@ pub fn wgpu_has_gpu() -> bool {
 #[cfg(not(feature = "wgpu"))]
 pub fn wgpu_has_gpu() -> bool {
     false
+}
+
+/// On Linux, whether the kernel shows a GPU at all (a DRM render node or an NVIDIA device);
+/// elsewhere, true (wgpu is asked).
+pub fn gpu_device_node_present() -> bool {
+    if !cfg!(target_os = "linux") {
+        return true;
+    }
+    let render_node = std::fs::read_dir("/dev/dri")
+        .into_iter()
+        .flatten()
+        .flatten()
+        .any(|e| e.file_name().to_string_lossy().starts_with("renderD"));
+    render_node || std::path::Path::new("/dev/nvidia0").exists()
 }
 
 /// The CUDA device, probed once per process with a one-element round trip, so a machine without
