@@ -67,6 +67,28 @@ impl Exemplar {
         Self::from_unit(width, height, c, &unit)
     }
 
+    /// The centre `side x side` pixels (at most) of an image exemplar.
+    pub fn centre(&self, side: usize) -> Self {
+        let (h, w, c) = (self.height, self.width, self.channels);
+        let (ch, cw) = (h.min(side), w.min(side));
+        if (ch, cw) == (h, w) {
+            return self.clone();
+        }
+        let (top, left) = ((h - ch) / 2, (w - cw) / 2);
+        let mut values = Vec::with_capacity(ch * cw * c);
+        for y in top..top + ch {
+            let from = (y * w + left) * c;
+            values.extend_from_slice(&self.values[from..from + cw * c]);
+        }
+        Self {
+            width: cw,
+            height: ch,
+            depth: 1,
+            channels: c,
+            values,
+        }
+    }
+
     /// Whether every pixel's first three channels are equal (a gray image stored as RGB).
     pub fn is_gray(&self) -> bool {
         let c = self.channels;

@@ -38,15 +38,10 @@ pub struct Measured {
 pub fn measure(exemplar: &Exemplar) -> Measured {
     let (h, w, c) = (exemplar.height, exemplar.width, exemplar.channels);
     let gray = exemplar.is_gray();
-    let (ch, cw) = (h.min(512), w.min(512));
-    let (top, left) = ((h - ch) / 2, (w - cw) / 2);
-    let mut window = Vec::with_capacity(ch * cw * c);
-    for y in top..top + ch {
-        let from = (y * w + left) * c;
-        window.extend_from_slice(&exemplar.values[from..from + cw * c]);
-    }
+    let window = exemplar.centre(512);
     // A "period" of a few pixels is noise (or aliasing), not a pattern the crops must hold.
-    let period = dominant_period(&window, ch, cw, c).map(|p| p.filter(|&p| p >= MIN_PERIOD));
+    let period = dominant_period(&window.values, window.height, window.width, c)
+        .map(|p| p.filter(|&p| p >= MIN_PERIOD));
     Measured {
         size: [h, w],
         channels: c,

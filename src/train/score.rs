@@ -30,7 +30,7 @@ impl Trainer {
         if self.config.gray && exemplar.channels >= 3 {
             exemplar = exemplar.to_gray();
         }
-        Ok(Some(centre(&exemplar, SCORE_SIDE)))
+        Ok(Some(exemplar.centre(SCORE_SIDE)))
     }
 
     /// SIFID (mean over `score_samples` fixed seeds) of the current generator against the
@@ -55,27 +55,5 @@ impl Trainer {
     /// The best score so far and the iteration that reached it.
     pub fn best(&self) -> Option<(f64, u64)> {
         self.best
-    }
-}
-
-/// The centre `side x side` (at most) of an exemplar.
-fn centre(exemplar: &Exemplar, side: usize) -> Exemplar {
-    let (h, w, c) = (exemplar.height, exemplar.width, exemplar.channels);
-    let (ch, cw) = (h.min(side), w.min(side));
-    if (ch, cw) == (h, w) {
-        return exemplar.clone();
-    }
-    let (top, left) = ((h - ch) / 2, (w - cw) / 2);
-    let mut values = Vec::with_capacity(ch * cw * c);
-    for y in top..top + ch {
-        let from = (y * w + left) * c;
-        values.extend_from_slice(&exemplar.values[from..from + cw * c]);
-    }
-    Exemplar {
-        width: cw,
-        height: ch,
-        depth: 1,
-        channels: c,
-        values,
     }
 }
