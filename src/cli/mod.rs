@@ -7,6 +7,7 @@ mod eval;
 mod synth;
 mod tools;
 mod train;
+mod zarr;
 
 use clap::{Parser, Subcommand};
 
@@ -37,8 +38,8 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Paint a sample of a trained pattern (PNG, EXR or NPY).
-    Synth(SynthArgs),
+    /// Paint a sample of a trained pattern (PNG, EXR, NPY or a Zarr store).
+    Synth(Box<SynthArgs>),
     /// Learn a pattern from one exemplar (PNG, JPEG, EXR, or an SDF volume .npy): WGAN-GP,
     /// checkpoints, previews.
     Train(Box<TrainArgs>),
@@ -59,7 +60,7 @@ pub enum Command {
 pub fn run() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
-        Command::Synth(args) => synth::synth(args),
+        Command::Synth(args) => synth::synth(*args),
         Command::Train(args) => train::train(*args),
         Command::Import(args) => tools::import(args),
         Command::Draw(args) => tools::draw(args),

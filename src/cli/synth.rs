@@ -77,17 +77,35 @@ pub struct SynthArgs {
     #[arg(long, value_name = "LINE|IMAGE", allow_hyphen_values = true)]
     pub guide: Option<String>,
     /// Output file: .png (8 or 16 bit), .exr (float) or .npy (raw floats in [-1, 1], [H, W, C]);
-    /// a volume: .npy ([D, H, W, C] float32) or .raw (bare little-endian float32). Default
-    /// synth.png, or synth.npy for a volume.
+    /// a volume: .npy ([D, H, W, C] float32) or .raw (bare little-endian float32). Either as
+    /// .zarr: a chunked Zarr v3 store (see --chunk and --shard). Default synth.png, or synth.npy
+    /// for a volume.
     #[arg(long = "out", short = 'o', value_name = "PATH")]
     pub out_path: Option<PathBuf>,
     /// `--out`, or the default for what is painted (set by `synth`).
     #[arg(skip)]
     pub out: PathBuf,
     /// Bits per channel for PNG output: 8 or 16. Default 8; a map set's maps keep their
-    /// inputs' depth.
+    /// inputs' depth. For .zarr: 8 or 16 store unsigned integers, as PNG; default float32.
     #[arg(long)]
     pub bits: Option<u8>,
+    /// For .zarr output: the side of a chunk on every axis (default 512 for images, 64 for
+    /// volumes). Chunks are the unit of work of --shard.
+    #[arg(long, value_name = "N")]
+    pub chunk: Option<usize>,
+    /// For .zarr output: render only the K-th of N disjoint sets of chunks (K from 0 to N-1),
+    /// so N workers, on one machine or many, fill one store. Rerunning a shard skips the
+    /// chunks it finished.
+    #[arg(long, value_name = "K/N", conflicts_with = "shard_from_env")]
+    pub shard: Option<crate::io::zarr::Shard>,
+    /// For .zarr output: take K of --shard from the environment: VAR, else
+    /// JOB_COMPLETION_INDEX (Kubernetes Indexed Job), else SLURM_ARRAY_TASK_ID (less
+    /// SLURM_ARRAY_TASK_MIN). N is --shards, else SLURM_ARRAY_TASK_COUNT.
+    #[arg(long, value_name = "VAR", num_args = 0..=1, default_missing_value = "")]
+    pub shard_from_env: Option<String>,
+    /// With --shard-from-env: the number of shards N.
+    #[arg(long, value_name = "N", requires = "shard_from_env")]
+    pub shards: Option<usize>,
     /// Where to run: cpu (fused CPU evaluator), flex (burn CPU backend), wgpu (GPU) or cuda
     /// (NVIDIA GPU; a build with --features cuda).
     #[arg(long, default_value = "cpu")]
@@ -187,6 +205,14 @@ pub(super) fn synth(mut args: SynthArgs) -> Result<()> {
         .out_path
         .clone()
         .unwrap_or_else(|| PathBuf::from(if volume { "synth.npy" } else { "synth.png" }));
+    if crate::io::extension(&args.out) == "zarr" {
+        return super::zarr::synth_zarr(&args, device, [height, width], depth);
+    }
+    if args.shard.is_some() || args.shard_from_env.is_some() || args.chunk.is_some() {
+        return Err(input_error!(
+            "--shard, --shard-from-env and --chunk are for Zarr stores: give --out NAME.zarr"
+        ));
+    }
     match (args.slice, depth) {
         (Some(slice), _) => synth_slice(&args, [depth.unwrap_or(width), height, width], slice),
         (None, Some(depth)) => synth_volume(&args, width, height, depth),
@@ -196,23 +222,7 @@ pub(super) fn synth(mut args: SynthArgs) -> Result<()> {
 
 /// `ipfn synth` of an image (or a map set) from a 2D model, streamed to disk in row bands.
 fn synth_image(args: &SynthArgs, device: DeviceChoice, [height, width]: [usize; 2]) -> Result<()> {
-    let volume_only = [
-        (
-            args.mesh.is_some(),
-            "--mesh needs a volume: give --size WxHxD or --depth with a 3D model",
-        ),
-        (
-            args.solid,
-            "--solid paints a volume or a plane: give --size WxHxD, --depth or --slice",
-        ),
-        (
-            args.density.is_some(),
-            "--density is for volume models: give --size WxHxD, --depth or --slice",
-        ),
-    ];
-    if let Some((_, message)) = volume_only.iter().find(|(given, _)| *given) {
-        return Err(input_error!("{message}"));
-    }
+    check_image_flags(args)?;
     if let Some(bits) = args.bits.filter(|b| *b != 8 && *b != 16) {
         return Err(input_error!(
             "--bits {bits}: PNG output is 8 or 16 bits per channel"
@@ -231,23 +241,8 @@ fn synth_image(args: &SynthArgs, device: DeviceChoice, [height, width]: [usize; 
         }],
     };
     crate::maps::check_outputs(&outputs, width, height)?;
-    let (x, y) = args.offset.unwrap_or((0, 0));
-    let mut builder = Synth::new(model.config, model.weights)
-        .seed(args.seed)
-        .zoom(args.zoom)
-        .offset(&[y, x])
-        .noise_scale(args.noise_scale)
-        .device(device);
-    if args.tile {
-        builder = builder.tile(&[height, width]);
-    }
-    if args.mirror {
-        builder = builder.mirror([height, width]);
-    }
-    if let Some(g) = &args.guide {
-        builder = builder.guide(crate::condition::Guide::parse_flag(g)?, [height, width]);
-    }
-    let painter = builder.painter()?;
+    let painter =
+        image_synth(args, device, model.config, model.weights, [height, width])?.painter()?;
     painter.check_axes(2)?;
     let say = |s: String| {
         if !args.quiet {
@@ -279,6 +274,56 @@ fn synth_image(args: &SynthArgs, device: DeviceChoice, [height, width]: [usize; 
         start.elapsed().as_secs_f64()
     ));
     Ok(())
+}
+
+/// An error for the flags that only volumes take, given for an image.
+pub(super) fn check_image_flags(args: &SynthArgs) -> Result<()> {
+    let volume_only = [
+        (
+            args.mesh.is_some(),
+            "--mesh needs a volume: give --size WxHxD or --depth with a 3D model",
+        ),
+        (
+            args.solid,
+            "--solid paints a volume or a plane: give --size WxHxD, --depth or --slice",
+        ),
+        (
+            args.density.is_some(),
+            "--density is for volume models: give --size WxHxD, --depth or --slice",
+        ),
+    ];
+    if let Some((_, message)) = volume_only.iter().find(|(given, _)| *given) {
+        return Err(input_error!("{message}"));
+    }
+    Ok(())
+}
+
+/// The `Synth` of a 2D model with the image flags: seed, zoom, offset, noise scale, device,
+/// tile, mirror and guide.
+pub(super) fn image_synth(
+    args: &SynthArgs,
+    device: DeviceChoice,
+    config: GeneratorConfig,
+    weights: GeneratorWeights,
+    [height, width]: [usize; 2],
+) -> Result<Synth> {
+    let (x, y) = args.offset.unwrap_or((0, 0));
+    let mut builder = Synth::new(config, weights)
+        .seed(args.seed)
+        .zoom(args.zoom)
+        .offset(&[y, x])
+        .noise_scale(args.noise_scale)
+        .device(device);
+    if args.tile {
+        builder = builder.tile(&[height, width]);
+    }
+    if args.mirror {
+        builder = builder.mirror([height, width]);
+    }
+    if let Some(g) = &args.guide {
+        builder = builder.guide(crate::condition::Guide::parse_flag(g)?, [height, width]);
+    }
+    Ok(builder)
 }
 
 /// A progress bar over `rows` rows, on a terminal when `show`.
@@ -366,7 +411,7 @@ fn synth_slice(
 
 /// The `Synth` of a 3D model with the flags volumes and slices share: seed, zoom, noise scale,
 /// device and a density ramp along columns `0..width`.
-fn volume_synth(
+pub(super) fn volume_synth(
     args: &SynthArgs,
     config: GeneratorConfig,
     weights: GeneratorWeights,
@@ -383,19 +428,30 @@ fn volume_synth(
     Ok(builder)
 }
 
-/// `ipfn synth --depth D`: a volume from a 3D model, streamed to .npy in slabs.
-fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> Result<()> {
-    if depth == 0 {
-        return Err(input_error!("--depth 0: must be at least 1"));
-    }
+/// An error for the flags that only images take, given for a volume.
+pub(super) fn check_volume_flags(args: &SynthArgs) -> Result<()> {
     if args.mirror || args.guide.is_some() {
         return Err(input_error!(
             "--mirror and --guide are for images; volumes do not support them yet"
         ));
     }
-    if args.offset.is_some() || args.bits.is_some() {
+    if args.offset.is_some() {
         return Err(input_error!(
-            "--offset and --bits are for images; a volume starts at the origin and is written as float32 (.npy or .raw)"
+            "--offset is for images; a volume starts at the origin"
+        ));
+    }
+    Ok(())
+}
+
+/// `ipfn synth --depth D`: a volume from a 3D model, streamed to .npy in slabs.
+fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> Result<()> {
+    if depth == 0 {
+        return Err(input_error!("--depth 0: must be at least 1"));
+    }
+    check_volume_flags(args)?;
+    if args.bits.is_some() {
+        return Err(input_error!(
+            "--bits is for images and Zarr stores; a .npy or .raw volume is written as float32"
         ));
     }
     let format = crate::io::VolumeFormat::from_path(&args.out)?;

@@ -13,6 +13,7 @@ use crate::error::{Error, Result};
 use crate::input_error;
 
 mod volume;
+pub mod zarr;
 pub use volume::{MAX_SLICE_VOXELS, VolumeFormat, VolumeWriter, check_volume_size};
 
 /// Reads a float32 (or float64, converted) `.npy` array: `(shape, values)` in C order.

@@ -9,6 +9,7 @@ use crate::condition::Condition;
 use crate::error::Result;
 use crate::generator::fused::CHUNK_POINTS;
 use crate::io::OutputFormat;
+use crate::io::zarr::{Shard, ZarrReport, ZarrWriter};
 use crate::latent::LatentField;
 use crate::maps::MapOutput;
 use crate::sample::PixelGrid;
@@ -244,6 +245,37 @@ impl Painter {
             writer.finish()?;
         }
         Ok(())
+    }
+
+    /// Renders the chunks of `writer`'s array that `shard` owns, each as one box, and writes
+    /// them; chunks already complete (from an earlier run of the shard) are skipped. Memory
+    /// holds one chunk. `progress(done, owned)` is called after each chunk.
+    pub fn write_zarr(
+        &self,
+        writer: &ZarrWriter,
+        shard: Shard,
+        mut progress: impl FnMut(usize, usize),
+    ) -> Result<ZarrReport> {
+        self.check_axes(writer.axes())?;
+        let chunks: usize = writer.grid().iter().product();
+        let owned = (0..chunks).filter(|&n| shard.owns(n)).count();
+        let mut report = ZarrReport {
+            chunks,
+            owned,
+            written: 0,
+            skipped: 0,
+        };
+        for n in (0..chunks).filter(|&n| shard.owns(n)) {
+            let (indices, origin, shape) = writer.chunk_box(n);
+            if writer.is_complete(&indices) {
+                report.skipped += 1;
+            } else {
+                writer.write_chunk(&indices, &shape, &self.render(&origin, &shape))?;
+                report.written += 1;
+            }
+            progress(report.written + report.skipped, owned);
+        }
+        Ok(report)
     }
 
     /// The mesh of the zero level set of the first channel of the `[depth, height, width]`

@@ -1,0 +1,219 @@
+//! `ipfn synth --out NAME.zarr`: a chunked Zarr v3 store, whole or one shard of it.
+
+use std::io::IsTerminal;
+use std::path::Path;
+use std::time::Instant;
+
+use super::synth::{SynthArgs, check_image_flags, check_volume_flags, image_synth, volume_synth};
+use crate::device::DeviceChoice;
+use crate::error::Result;
+use crate::input_error;
+use crate::io::zarr::{DEFAULT_IMAGE_CHUNK, DEFAULT_VOLUME_CHUNK, Shard, ZarrType, ZarrWriter};
+use crate::model::choose_model;
+
+/// The flags that make one worker differ from another of the same render; they are left out of
+/// the command stored with the array, so every shard writes the same metadata.
+const WORKER_FLAGS: [&str; 5] = ["--shard", "--shard-from-env", "--shards", "--quiet", "-q"];
+
+pub(super) fn synth_zarr(
+    args: &SynthArgs,
+    device: DeviceChoice,
+    [height, width]: [usize; 2],
+    depth: Option<usize>,
+) -> Result<()> {
+    if args.slice.is_some() || args.mesh.is_some() {
+        return Err(input_error!(
+            "{}: --slice and --mesh write an image or a mesh, not a Zarr store: drop them, or give a .png or .obj",
+            args.out.display()
+        ));
+    }
+    let shard = shard_of(args)?;
+    let kind = ZarrType::from_bits(args.bits)?;
+    let model = choose_model(args.model.as_deref(), Path::new("."))?;
+    if model.maps.is_some() {
+        return Err(input_error!(
+            "{}: a map set is written as one image per map; give a .png or .exr --out",
+            args.out.display()
+        ));
+    }
+    let (painter, shape, chunk) = match depth {
+        None => {
+            check_image_flags(args)?;
+            let synth = image_synth(args, device, model.config, model.weights, [height, width])?;
+            (synth.painter()?, vec![height, width], DEFAULT_IMAGE_CHUNK)
+        }
+        Some(depth) => {
+            check_volume_flags(args)?;
+            let mut synth = volume_synth(args, model.config, model.weights, width)?;
+            if args.tile {
+                synth = synth.tile(&[depth, height, width]);
+            }
+            (
+                synth.painter()?,
+                vec![depth, height, width],
+                DEFAULT_VOLUME_CHUNK,
+            )
+        }
+    };
+    painter.check_axes(shape.len())?;
+    let attributes = attributes(args, &model.description, kind);
+    let writer = ZarrWriter::create(
+        &args.out,
+        &shape,
+        painter.channels(),
+        args.chunk.unwrap_or(chunk),
+        kind,
+        attributes,
+    )?;
+    let say = |s: String| {
+        if !args.quiet {
+            eprintln!("{s}");
+        }
+    };
+    say(format!("model: {}", model.description));
+    if let Some(t) = painter.tile_adjustment() {
+        say(t.describe());
+    }
+    let removed = writer.remove_stale_temporaries(|n| shard.owns(n));
+    if removed > 0 {
+        say(format!(
+            "removed {removed} temporary chunk files left by a stopped run of this shard"
+        ));
+    }
+    let start = Instant::now();
+    let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
+        let bar = indicatif::ProgressBar::new(0);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} chunks  {elapsed} (eta {eta})",
+            )
+            .expect("valid progress template"),
+        );
+        bar
+    });
+    let report = painter.write_zarr(&writer, shard, |done, owned| {
+        if let Some(bar) = &bar {
+            bar.set_length(owned as u64);
+            bar.set_position(done as u64);
+        }
+    })?;
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    let which = if shard.count > 1 {
+        format!("shard {}/{}: ", shard.index, shard.count)
+    } else {
+        String::new()
+    };
+    let skipped = if report.skipped > 0 {
+        format!(", {} already complete and skipped", report.skipped)
+    } else {
+        String::new()
+    };
+    say(format!(
+        "wrote {} ({}): {which}{} of {} chunks written{skipped}, seed {}, {device:?}, in {:.2} s",
+        args.out.display(),
+        writer.describe(),
+        report.written,
+        report.chunks,
+        args.seed,
+        start.elapsed().as_secs_f64()
+    ));
+    Ok(())
+}
+
+/// The shard this worker renders: `--shard`, `--shard-from-env`, or the whole array.
+fn shard_of(args: &SynthArgs) -> Result<Shard> {
+    match (&args.shard, &args.shard_from_env) {
+        (Some(shard), _) => Ok(*shard),
+        (None, Some(var)) => {
+            let var = (!var.is_empty()).then_some(var.as_str());
+            Shard::from_env(var, args.shards, |name| std::env::var(name).ok())
+        }
+        (None, None) => Ok(Shard::ALL),
+    }
+}
+
+/// What the store records of the render: the model, the synth settings, what the values mean,
+/// and the command without the flags that differ between workers.
+fn attributes(
+    args: &SynthArgs,
+    model: &str,
+    kind: ZarrType,
+) -> serde_json::Map<String, serde_json::Value> {
+    let values = match kind {
+        ZarrType::Float32 => "generator values in [-1, 1]",
+        ZarrType::Uint8 => "round((v + 1) / 2 * 255) of generator values v in [-1, 1]",
+        ZarrType::Uint16 => "round((v + 1) / 2 * 65535) of generator values v in [-1, 1]",
+    };
+    let (x, y) = args.offset.unwrap_or((0, 0));
+    let ipfn = serde_json::json!({
+        "version": env!("CARGO_PKG_VERSION"),
+        "model": model,
+        "seed": args.seed,
+        "zoom": args.zoom,
+        "offset": [x, y],
+        "noise_scale": args.noise_scale,
+        "tile": args.tile,
+        "mirror": args.mirror,
+        "guide": args.guide,
+        "density": args.density.map(|(a, b)| [a, b]),
+        "device": args.device,
+        "values": values,
+        "command": worker_independent_command(std::env::args()),
+    });
+    let mut map = serde_json::Map::new();
+    map.insert("ipfn".to_string(), ipfn);
+    map
+}
+
+/// The command line with the worker flags (and their values) removed.
+fn worker_independent_command(argv: impl Iterator<Item = String>) -> String {
+    let mut kept = Vec::new();
+    let mut argv = argv.peekable();
+    if argv.peek().is_some() {
+        argv.next();
+        kept.push("ipfn".to_string());
+    }
+    while let Some(arg) = argv.next() {
+        let name = arg.split('=').next().unwrap_or_default();
+        if !WORKER_FLAGS.contains(&name) {
+            kept.push(arg);
+            continue;
+        }
+        // A value follows the flags that take one, unless it was given with `=`.
+        let takes_value = matches!(name, "--shard" | "--shards" | "--shard-from-env");
+        let next_is_value = argv.peek().is_some_and(|v| !v.starts_with('-'));
+        if takes_value && !arg.contains('=') && next_is_value {
+            argv.next();
+        }
+    }
+    kept.join(" ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::worker_independent_command;
+
+    #[test]
+    fn worker_flags_leave_the_command() {
+        let argv = |s: &str| {
+            s.split(' ')
+                .map(String::from)
+                .collect::<Vec<_>>()
+                .into_iter()
+        };
+        let a = worker_independent_command(argv(
+            "/bin/ipfn synth --size 64 --out a.zarr --shard 1/4 -q",
+        ));
+        let b = worker_independent_command(argv(
+            "ipfn synth --shard-from-env --shards 4 --size 64 --out a.zarr",
+        ));
+        let c = worker_independent_command(argv(
+            "ipfn synth --shard=3/4 --size 64 --shard-from-env I --out a.zarr",
+        ));
+        assert_eq!(a, "ipfn synth --size 64 --out a.zarr");
+        assert_eq!(a, b);
+        assert_eq!(a, c);
+    }
+}
