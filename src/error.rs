@@ -10,9 +10,9 @@ pub enum Error {
     /// Something failed that the user's input does not explain.
     #[error("{0}")]
     Runtime(String),
-    /// Stopped by Ctrl-C after saving what there was to save.
+    /// Stopped by a signal (Ctrl-C, SIGTERM: its number) after saving what there was to save.
     #[error("{0}")]
-    Interrupted(String),
+    Interrupted(String, i32),
 }
 
 impl Error {
@@ -21,7 +21,7 @@ impl Error {
         match self {
             Error::Input(_) => 2,
             Error::Runtime(_) => 1,
-            Error::Interrupted(_) => 130,
+            Error::Interrupted(_, signal) => crate::stop::exit_code(*signal),
         }
     }
 }

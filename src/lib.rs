@@ -40,6 +40,7 @@ pub mod metrics;
 pub mod model;
 pub mod procedural;
 pub mod sample;
+pub mod stop;
 pub mod synth;
 pub mod train;
 

@@ -59,6 +59,8 @@ pub enum Command {
 /// Parses the process arguments and runs the command.
 pub fn run() -> Result<()> {
     let cli = Cli::parse();
+    // A stop removes the temporary files of unfinished writes; `train` stops at a safe point.
+    crate::stop::install(crate::stop::OnSignal::ExitNow);
     match cli.command {
         Command::Synth(args) => synth::synth(*args),
         Command::Train(args) => train::train(*args),

@@ -2,7 +2,6 @@
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use clap::Args;
@@ -12,7 +11,9 @@ use crate::error::Result;
 use crate::input_error;
 use crate::maps::MapFiles;
 use crate::train::recipe::settle;
-use crate::train::{ExemplarSource, RunEnd, TrainConfig, TrainOverrides, Trainer, default_run_dir};
+use crate::train::{
+    ExemplarSource, RunEnd, RunState, TrainConfig, TrainOverrides, Trainer, default_run_dir,
+};
 
 #[derive(Debug, Args)]
 pub struct TrainArgs {
@@ -28,6 +29,10 @@ pub struct TrainArgs {
     /// Continue the run in DIR from its latest.ipfn, exactly where it stopped.
     #[arg(long, value_name = "DIR", conflicts_with_all = ["exemplar", "config", "out", "maps"])]
     pub resume: Option<PathBuf>,
+    /// With --resume: continue from the run's previous.ipfn (the full state one checkpoint
+    /// before latest.ipfn), for when latest.ipfn is damaged.
+    #[arg(long, requires = "resume")]
+    pub from_previous: bool,
     /// A material map set instead of one image: aligned maps of one size and bit depth
     /// (albedo.png,normal.png,roughness.png,height.png), learned together; synth writes one
     /// file per map, named after these files.
@@ -67,7 +72,11 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
     };
     let mut trainer = match &args.resume {
         Some(dir) => {
-            let t = Trainer::resume_with(dir, &args.overrides, &device)?;
+            let state = match args.from_previous {
+                true => RunState::Previous,
+                false => RunState::Latest,
+            };
+            let t = Trainer::resume_with(dir, state, &args.overrides, &device)?;
             say(format!(
                 "resuming {} at iteration {}",
                 dir.display(),
@@ -91,7 +100,8 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
         crate::bench::device_name(choice)
     ));
 
-    let stop = stop_on_ctrl_c();
+    crate::stop::install(crate::stop::OnSignal::FinishStep);
+    let stop = crate::stop::flag();
     let bar = iteration_bar(!args.quiet, total, trainer.iteration);
     let (start, first, log_every) = (Instant::now(), trainer.iteration, trainer.config.log_every);
     let end = trainer.run(stop, |trainer, stats| {
@@ -119,12 +129,17 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
         if let Some(bar) = &bar {
             bar.abandon();
         }
-        return Err(crate::Error::Interrupted(format!(
-            "interrupted at iteration {}; saved {}; continue with `ipfn train --resume {}`",
-            trainer.iteration,
-            latest.display(),
-            trainer.run_dir().display()
-        )));
+        let signal = crate::stop::signal().unwrap_or(2);
+        return Err(crate::Error::Interrupted(
+            format!(
+                "{} at iteration {}; saved {}; continue with `ipfn train --resume {}`",
+                crate::stop::name(signal),
+                trainer.iteration,
+                latest.display(),
+                trainer.run_dir().display()
+            ),
+            signal,
+        ));
     }
     if let Some(bar) = bar {
         bar.finish_and_clear();
@@ -172,21 +187,6 @@ fn start(args: &TrainArgs, choice: DeviceChoice, say: &impl Fn(String)) -> Resul
         say(format!("map set: {}", maps.describe()));
     }
     Ok(trainer)
-}
-
-/// The flag Ctrl-C raises: the run then ends after its current iteration and a checkpoint. A
-/// second Ctrl-C exits at once (`latest.ipfn` is intact: it is written atomically).
-fn stop_on_ctrl_c() -> &'static AtomicBool {
-    static STOP: AtomicBool = AtomicBool::new(false);
-    let _ = ctrlc::set_handler(|| {
-        if STOP.swap(true, Ordering::SeqCst) {
-            std::process::exit(130);
-        }
-        eprintln!(
-            "\ninterrupted: finishing this iteration and saving a checkpoint (Ctrl-C again to quit at once)"
-        );
-    });
-    &STOP
 }
 
 /// A progress bar over `total` iterations starting at `position`, on a terminal when `show`.

@@ -60,6 +60,15 @@ impl CriticConfig {
                 self.axes
             ));
         }
+        if self.widths.is_empty()
+            || self.widths.len() > 8
+            || self.widths.iter().any(|&w| w == 0 || w > 4096)
+        {
+            return Err(input_error!(
+                "critic_widths = {:?}: 1 to 8 layers of 1 to 4096 channels",
+                self.widths
+            ));
+        }
         let factor = 1usize << self.widths.len();
         if self.crop == 0 || !self.crop.is_multiple_of(factor) {
             return Err(input_error!(

@@ -57,6 +57,13 @@ use crate::checkpoint::Checkpoint;
 use crate::encoding;
 use crate::input_error;
 
+/// The widest hidden layer a generator may have.
+pub const MAX_WIDTH: usize = 4096;
+/// The most hidden layers a generator may have.
+pub const MAX_HIDDEN_LAYERS: usize = 256;
+/// The most parameters a generator may have: 2^26 (256 MiB of floats; the paper's has 150k).
+pub const MAX_PARAMETERS: usize = 1 << 26;
+
 /// Shape and constants of a generator. Stored in every checkpoint.
 #[derive(Config, Debug, PartialEq)]
 pub struct GeneratorConfig {
@@ -119,6 +126,9 @@ impl GeneratorConfig {
     }
 
     /// Checks that the numbers describe a model this build can run.
+    /// Checks every field against its range, before anything is allocated from it: a model
+    /// file's or a config's claims are bounded ([`MAX_WIDTH`], [`MAX_HIDDEN_LAYERS`],
+    /// [`MAX_PARAMETERS`]).
     pub fn validate(&self) -> crate::Result<()> {
         let bad = |what: &str| Err(input_error!("invalid generator config: {what}"));
         if !(2..=3).contains(&self.dims) {
@@ -143,8 +153,24 @@ impl GeneratorConfig {
         if self.width == 0 || self.hidden_layers == 0 {
             return bad("width and hidden_layers must be at least 1");
         }
+        if self.width > MAX_WIDTH || self.hidden_layers > MAX_HIDDEN_LAYERS {
+            return bad(&format!(
+                "width = {}, hidden_layers = {}: at most {MAX_WIDTH} and {MAX_HIDDEN_LAYERS}",
+                self.width, self.hidden_layers
+            ));
+        }
+        let parameters: usize = self.layer_shapes().iter().map(|(i, o)| (i + 1) * o).sum();
+        if parameters > MAX_PARAMETERS {
+            return bad(&format!(
+                "{parameters} parameters (width {} x {} layers), at most {MAX_PARAMETERS}",
+                self.width, self.hidden_layers
+            ));
+        }
         if !(self.sigma > 0.0 && self.latent_scale > 0.0) || self.crop == 0 {
             return bad("sigma, latent_scale and crop must be positive");
+        }
+        if !(self.sigma.is_finite() && self.latent_scale.is_finite()) {
+            return bad("sigma and latent_scale must be finite");
         }
         Ok(())
     }

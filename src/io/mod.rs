@@ -56,9 +56,20 @@ pub fn read_npy(path: &Path) -> Result<(Vec<usize>, Vec<f32>)> {
 ///
 /// Creating one checks at once that the destination folder is writable. Dropping it without
 /// [`AtomicFile::commit`] removes the temporary file.
+///
+/// The temporary file is registered with [`crate::stop`], so a Ctrl-C or SIGTERM that ends the
+/// process removes it too.
 pub struct AtomicFile {
-    temp: tempfile::NamedTempFile,
+    temp: Option<tempfile::NamedTempFile>,
     path: PathBuf,
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if let Some(temp) = self.temp.take() {
+            crate::stop::forget_temporary(temp.path());
+        }
+    }
 }
 
 /// Checks that `path` can be created: its folder exists and it is not itself a folder.
@@ -95,36 +106,46 @@ impl AtomicFile {
             .suffix(".tmp")
             .tempfile_in(dir)
             .map_err(|e| input_error!("{}: cannot write: {e}", path.display()))?;
+        crate::stop::register_temporary(temp.path());
         Ok(Self {
-            temp,
+            temp: Some(temp),
             path: path.to_path_buf(),
         })
     }
 
     pub fn file(&mut self) -> &mut File {
-        self.temp.as_file_mut()
+        self.temp
+            .as_mut()
+            .expect("present until commit")
+            .as_file_mut()
     }
 
     /// Flushes to disk and renames the temporary file onto the destination.
-    pub fn commit(self) -> Result<()> {
-        let path = self.path;
+    pub fn commit(mut self) -> Result<()> {
+        let path = self.path.clone();
+        let temp = self.temp.take().expect("present until commit");
+        let temp_path = temp.path().to_path_buf();
+        let committed = Self::persist(temp, &path);
+        crate::stop::forget_temporary(&temp_path);
+        committed
+    }
+
+    fn persist(temp: tempfile::NamedTempFile, path: &Path) -> Result<()> {
         // tempfile creates files private (0600); give outputs the usual permissions.
         #[cfg(unix)]
         {
             use std::os::unix::fs::PermissionsExt;
-            let mode = std::fs::metadata(&path)
+            let mode = std::fs::metadata(path)
                 .map(|m| m.permissions().mode())
                 .unwrap_or(0o644);
-            let _ = self
-                .temp
+            let _ = temp
                 .as_file()
                 .set_permissions(std::fs::Permissions::from_mode(mode));
         }
-        self.temp
-            .as_file()
+        temp.as_file()
             .sync_all()
             .map_err(|e| Error::Runtime(format!("{}: cannot write: {e}", path.display())))?;
-        self.temp.persist(&path).map_err(|e| {
+        temp.persist(path).map_err(|e| {
             Error::Runtime(format!("{}: cannot write: {}", path.display(), e.error))
         })?;
         Ok(())

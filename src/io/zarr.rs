@@ -289,7 +289,7 @@ impl ZarrWriter {
             ZarrType::Uint8 => (data_type::uint8(), zarrs::array::FillValue::from(0u8)),
             ZarrType::Uint16 => (data_type::uint16(), zarrs::array::FillValue::from(0u16)),
         };
-        let gzip = GzipCodec::new(5).expect("gzip level 5 is valid");
+        let gzip = GzipCodec::new(1).expect("gzip level 1 is valid");
         let store = Arc::new(AtomicStore {
             root: path.to_path_buf(),
         });
@@ -505,7 +505,7 @@ impl ZarrWriter {
         let mut chunk = self.chunk.clone();
         chunk.push(self.channels);
         format!(
-            "Zarr v3 {} {shape:?} in chunks of {chunk:?} (gzip)",
+            "Zarr v3 {} {shape:?} in chunks of {chunk:?} (gzip level 1)",
             self.kind.name()
         )
     }

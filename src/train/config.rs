@@ -251,6 +251,38 @@ impl TrainConfig {
     }
 
     /// Checks the numbers, and that the exemplar is large enough for the crop.
+    /// The bounds on iterations, batch and crop ([`MAX_ITERATIONS`] and the others).
+    fn check_sizes(&self, kind: &RunKind) -> Result<()> {
+        let limits = [
+            (
+                "iterations",
+                self.iterations as usize,
+                MAX_ITERATIONS as usize,
+            ),
+            ("batch", self.batch, MAX_BATCH),
+            ("crop", self.crop, MAX_CROP),
+            ("critic_steps", self.critic_steps, 1000),
+            ("generator_steps", self.generator_steps, 1000),
+        ];
+        for (name, value, max) in limits {
+            if value > max {
+                return Err(input_error!("{name} = {value}: at most {max}"));
+            }
+        }
+        let values = (0..kind.crop_axes())
+            .try_fold(self.batch, |n, _| n.checked_mul(self.crop))
+            .filter(|&n| n <= MAX_BATCH_VALUES);
+        if values.is_none() {
+            return Err(input_error!(
+                "batch {} of {}-pixel crops over {} axes: more than {MAX_BATCH_VALUES} values per batch; use a smaller batch or crop",
+                self.batch,
+                self.crop,
+                kind.crop_axes()
+            ));
+        }
+        Ok(())
+    }
+
     pub fn validate(&self, kind: &RunKind, exemplar: &Exemplar, path: &Path) -> Result<()> {
         let positive = [
             ("iterations", self.iterations as usize),
@@ -266,11 +298,22 @@ impl TrainConfig {
                 return Err(input_error!("{name} = 0: must be at least 1"));
             }
         }
-        if !(self.lr > 0.0 && self.gp_lambda >= 0.0 && self.shift >= 0.0 && self.resize > 0.0) {
+        let finite = [
+            self.lr,
+            self.gp_lambda,
+            self.shift as f64,
+            self.resize,
+            self.beta1,
+            self.beta2,
+        ];
+        if !(self.lr > 0.0 && self.gp_lambda >= 0.0 && self.shift >= 0.0 && self.resize > 0.0)
+            || finite.iter().any(|v| !v.is_finite())
+        {
             return Err(input_error!(
-                "lr and resize must be positive, gp_lambda and shift not negative"
+                "lr and resize must be positive, gp_lambda and shift not negative, and all finite"
             ));
         }
+        self.check_sizes(kind)?;
         self.time_budget()?;
         if let Some(k) = &self.k_init
             && (k.len() != kind.generator_axes() || k.iter().any(|v| !v.is_finite() || *v == 0.0))
@@ -313,6 +356,18 @@ impl TrainConfig {
     }
 }
 
+/// The longest time budget: a year.
+const MAX_TIME_SECONDS: f64 = 365.0 * 24.0 * 3600.0;
+
+/// Upper bounds on the settings that size memory and time, so a typing slip or a hostile config
+/// is a one-line error instead of an allocation that takes the machine down.
+pub const MAX_ITERATIONS: u64 = 1_000_000_000;
+pub const MAX_BATCH: usize = 4096;
+pub const MAX_CROP: usize = 2048;
+/// The most values in one batch of crops (`batch x crop^axes`): 2^26, 256 MiB of floats per
+/// channel before the critic's activations.
+pub const MAX_BATCH_VALUES: usize = 1 << 26;
+
 /// Parses a duration such as `15m`, `90s`, `1h30m` or `2h` (a bare number is seconds).
 pub fn parse_duration(text: &str) -> Result<std::time::Duration> {
     let bad = || input_error!("--time {text}: expected a duration such as 15m, 90s or 1h30m");
@@ -338,6 +393,11 @@ pub fn parse_duration(text: &str) -> Result<std::time::Duration> {
     }
     if !(seconds.is_finite() && seconds > 0.0) {
         return Err(bad());
+    }
+    if seconds > MAX_TIME_SECONDS {
+        return Err(input_error!(
+            "--time {text}: at most 8760h (a year); a run that long should checkpoint and resume"
+        ));
     }
     Ok(std::time::Duration::from_secs_f64(seconds))
 }

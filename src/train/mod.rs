@@ -13,6 +13,7 @@ pub mod adam;
 pub mod config;
 pub mod data;
 pub mod fakes;
+pub mod lock;
 pub mod recipe;
 pub mod run;
 pub mod score;
@@ -25,7 +26,7 @@ use burn::prelude::*;
 pub use config::{DEFAULT_SDF_SCALE, RunKind, TrainConfig, TrainOverrides};
 pub use data::{ExemplarSource, load_exemplar};
 pub use fakes::FLEX_TRAIN_CHUNK;
-pub use run::{RunEnd, metrics_header};
+pub use run::{RunEnd, RunState, metrics_header};
 pub use step::{IterationStats, StepTimes};
 
 use crate::checkpoint::{self, Checkpoint};
@@ -57,6 +58,8 @@ pub struct Trainer {
     pub iteration: u64,
     /// The best score so far (SIFID at a checkpoint; lower is better) and its iteration.
     best: Option<(f64, u64)>,
+    /// The run folder's lock, taken by `start`, `resume` or the first `run`.
+    lock: Option<lock::RunLock>,
 }
 
 impl Trainer {
@@ -106,6 +109,7 @@ impl Trainer {
             critic,
             iteration: 0,
             best: None,
+            lock: None,
         })
     }
 
@@ -123,14 +127,21 @@ impl Trainer {
                 run_dir.display()
             ));
         }
-        Self::new(config, source, run_dir, device)
+        let mut trainer = Self::new(config, source, run_dir, device)?;
+        run::create_dir(run_dir)?;
+        trainer.lock = Some(lock::RunLock::acquire(run_dir)?);
+        Ok(trainer)
     }
 
     /// Continues the run in `run_dir` with the flags of `overrides` that a resumed run may
     /// change (the total iterations, how often to checkpoint, preview and log); the others are
     /// refused.
+    ///
+    /// `state` is the run's `latest.ipfn`, or its `previous.ipfn` (the full state one checkpoint
+    /// earlier) where `latest.ipfn` is damaged.
     pub fn resume_with(
         run_dir: &Path,
+        state: RunState,
         overrides: &TrainOverrides,
         device: &Device,
     ) -> Result<Self> {
@@ -141,7 +152,7 @@ impl Trainer {
                 fixed.join(", ")
             ));
         }
-        let mut trainer = Self::resume(run_dir, overrides.iterations, device)?;
+        let mut trainer = Self::resume_from(run_dir, state, overrides.iterations, device)?;
         overrides.apply(&mut trainer.config);
         if overrides.time.is_some() && overrides.iterations.is_none() {
             // A new budget plans the rest of the run afresh.
@@ -154,13 +165,42 @@ impl Trainer {
     /// Continues the run in `run_dir` from its `latest.ipfn`. `iterations`, if given, replaces
     /// the planned total.
     pub fn resume(run_dir: &Path, iterations: Option<u64>, device: &Device) -> Result<Self> {
-        let latest = run_dir.join("latest.ipfn");
-        if !latest.exists() {
+        Self::resume_from(run_dir, RunState::Latest, iterations, device)
+    }
+
+    /// Continues the run in `run_dir` from its `latest.ipfn` or `previous.ipfn`. A damaged
+    /// `latest.ipfn` is refused with a line that says whether `previous.ipfn` is intact.
+    pub fn resume_from(
+        run_dir: &Path,
+        state: RunState,
+        iterations: Option<u64>,
+        device: &Device,
+    ) -> Result<Self> {
+        let file = run_dir.join(state.file_name());
+        if !file.exists() && state == RunState::Latest {
             return Err(input_error!(
                 "{}: no latest.ipfn to resume from; is this a training run folder?",
                 run_dir.display()
             ));
         }
+        let lock = lock::RunLock::acquire(run_dir)?;
+        let resumed = Self::resume_file(run_dir, &file, lock, iterations, device);
+        match (resumed, state) {
+            (Err(e @ crate::Error::Input(_)), RunState::Latest) => {
+                Err(run::offer_previous(run_dir, e))
+            }
+            (resumed, _) => resumed,
+        }
+    }
+
+    fn resume_file(
+        run_dir: &Path,
+        latest: &Path,
+        lock: lock::RunLock,
+        iterations: Option<u64>,
+        device: &Device,
+    ) -> Result<Self> {
+        let latest = latest.to_path_buf();
         let ckpt = Checkpoint::load(&latest)?;
         let mut config = TrainConfig::from_toml(ckpt.meta(TRAIN_CONFIG_KEY)?, &latest)?;
         if let Some(n) = iterations {
@@ -212,6 +252,7 @@ impl Trainer {
             adam_critic,
             iteration,
             best,
+            lock: Some(lock),
         })
     }
 

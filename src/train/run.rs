@@ -34,6 +34,67 @@ pub(super) fn read_best(checkpoint: &Checkpoint) -> Option<(f64, u64)> {
     Some((score.parse().ok()?, iteration.parse().ok()?))
 }
 
+/// Which full training state a run resumes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RunState {
+    /// `latest.ipfn`, written at every checkpoint.
+    Latest,
+    /// `previous.ipfn`, the state of the checkpoint before `latest.ipfn`'s, kept for when
+    /// `latest.ipfn` is damaged (a disk error, a file copied half-way).
+    Previous,
+}
+
+impl RunState {
+    pub fn file_name(self) -> &'static str {
+        match self {
+            RunState::Latest => "latest.ipfn",
+            RunState::Previous => "previous.ipfn",
+        }
+    }
+}
+
+/// The error for a `latest.ipfn` that cannot be resumed, extended with what `previous.ipfn`
+/// offers.
+pub(super) fn offer_previous(run_dir: &Path, error: Error) -> Error {
+    // Only a latest.ipfn that cannot be read is the file's fault (other refusals, such as a
+    // changed exemplar, hold for previous.ipfn too).
+    if !error.to_string().contains(RunState::Latest.file_name()) {
+        return error;
+    }
+    let previous = run_dir.join(RunState::Previous.file_name());
+    let iteration = Checkpoint::load(&previous)
+        .ok()
+        .and_then(|c| c.metadata.get(ITERATION_KEY).cloned());
+    match iteration {
+        Some(it) => crate::input_error!(
+            "{error}; {} holds the full state at iteration {it}: resume from it with `ipfn train --resume {} --from-previous`",
+            previous.display(),
+            run_dir.display()
+        ),
+        None => error,
+    }
+}
+
+/// Makes `previous.ipfn` the current `latest.ipfn` (a hard link, else a copy), before a new
+/// `latest.ipfn` replaces it: the run folder always holds two full states.
+fn keep_previous(run_dir: &Path) -> Result<()> {
+    let latest = run_dir.join(RunState::Latest.file_name());
+    if !latest.exists() {
+        return Ok(());
+    }
+    let previous = run_dir.join(RunState::Previous.file_name());
+    let link = run_dir.join(".previous.ipfn.link");
+    let _ = std::fs::remove_file(&link);
+    let linked = std::fs::hard_link(&latest, &link).and_then(|_| std::fs::rename(&link, &previous));
+    if linked.is_err() {
+        let _ = std::fs::remove_file(&link);
+        let bytes = std::fs::read(&latest)
+            .map_err(|e| Error::Runtime(format!("{}: cannot read: {e}", latest.display())))?;
+        crate::io::write_atomic(&previous, &bytes)?;
+    }
+    Ok(())
+}
+
 /// How [`Trainer::run`] ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RunEnd {
@@ -55,6 +116,9 @@ impl Trainer {
         mut on_iteration: impl FnMut(&Trainer, &IterationStats),
     ) -> Result<RunEnd> {
         self.prepare_run_dir()?;
+        if self.lock.is_none() {
+            self.lock = Some(super::lock::RunLock::acquire(&self.run_dir)?);
+        }
         let budget = self.config.time_budget()?;
         let (clock, first) = (Instant::now(), self.iteration);
         while self.iteration < self.config.iterations {
@@ -164,7 +228,8 @@ impl Trainer {
         checkpoint::write_module(&self.critic, "critic", &mut state);
         self.adam_generator.write_to("adam.generator", &mut state);
         self.adam_critic.write_to("adam.critic", &mut state);
-        state.save(&self.run_dir.join("latest.ipfn"))?;
+        keep_previous(&self.run_dir)?;
+        state.save(&self.run_dir.join(RunState::Latest.file_name()))?;
         Ok(path)
     }
 
@@ -261,7 +326,7 @@ impl Trainer {
     }
 }
 
-fn create_dir(dir: &Path) -> Result<&Path> {
+pub(super) fn create_dir(dir: &Path) -> Result<&Path> {
     std::fs::create_dir_all(dir)
         .map_err(|e| Error::Runtime(format!("{}: cannot create: {e}", dir.display())))?;
     Ok(dir)
