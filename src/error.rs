@@ -5,13 +5,13 @@
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// Bad input: a missing or corrupt file, an impossible size, an unknown option.
-    #[error("{0}")]
+    #[error("{}", one_line(.0))]
     Input(String),
     /// Something failed that the user's input does not explain.
-    #[error("{0}")]
+    #[error("{}", one_line(.0))]
     Runtime(String),
     /// Stopped by a signal (Ctrl-C, SIGTERM: its number) after saving what there was to save.
-    #[error("{0}")]
+    #[error("{}", one_line(.0))]
     Interrupted(String, i32),
 }
 
@@ -24,6 +24,17 @@ impl Error {
             Error::Interrupted(_, signal) => crate::stop::exit_code(*signal),
         }
     }
+}
+
+/// A message as one line: decoders' messages (a parser's caret diagram, a trailing newline)
+/// are joined with "; ", so every error stays a single line for a person and a log.
+pub fn one_line(message: &str) -> String {
+    message
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 pub type Result<T> = std::result::Result<T, Error>;

@@ -184,8 +184,32 @@ pub fn read_exemplar_with_bits(path: &Path) -> Result<(Exemplar, u8)> {
 
 /// EXR exemplars: channels Y (gray) or R, G, B, optionally A; values expected in [0, 1]
 /// (outside is clipped).
+/// The most bytes an EXR exemplar's layers may claim (as the `image` crate's default limit for
+/// PNG and JPEG): headers are checked before any pixel is allocated.
+pub const MAX_EXR_BYTES: usize = 512 << 20;
+
 fn read_exr_exemplar(path: &Path) -> Result<Exemplar> {
     use exr::prelude::*;
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| input_error!("{}: not a readable EXR image ({e})", path.display()))?;
+    for header in meta.headers.iter() {
+        let size = header.layer_size;
+        let bytes = size
+            .0
+            .checked_mul(size.1)
+            .and_then(|p| p.checked_mul(header.channels.list.len().max(1)))
+            .and_then(|v| v.checked_mul(4));
+        if bytes.is_none_or(|b| b > MAX_EXR_BYTES) {
+            return Err(input_error!(
+                "{}: its header claims a {}x{} layer of {} channels, over the {} MiB an exemplar may take",
+                path.display(),
+                size.0,
+                size.1,
+                header.channels.list.len(),
+                MAX_EXR_BYTES >> 20
+            ));
+        }
+    }
     let image = read()
         .no_deep_data()
         .largest_resolution_level()

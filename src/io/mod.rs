@@ -16,13 +16,50 @@ mod volume;
 pub mod zarr;
 pub use volume::{MAX_SLICE_VOXELS, VolumeFormat, VolumeWriter, check_volume_size};
 
+/// Where the header of the `.npy` file `bytes` ends, if its preamble (magic, version, header
+/// length) is whole and the header fits in the file.
+fn npy_header_end(bytes: &[u8]) -> Option<usize> {
+    if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
+        return None;
+    }
+    let (length, preamble): (usize, usize) = match bytes[6] {
+        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
+        2 | 3 if bytes.len() >= 12 => (
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+            12,
+        ),
+        _ => return None,
+    };
+    let end = preamble.checked_add(length)?;
+    (end <= bytes.len()).then_some(end)
+}
+
 /// Reads a float32 (or float64, converted) `.npy` array: `(shape, values)` in C order.
 pub fn read_npy(path: &Path) -> Result<(Vec<usize>, Vec<f32>)> {
     let bytes =
         std::fs::read(path).map_err(|e| input_error!("{}: cannot read: {e}", path.display()))?;
     let corrupt =
         |e: std::io::Error| input_error!("{}: not a valid .npy array: {e}", path.display());
+    let header_end = npy_header_end(&bytes).ok_or_else(|| {
+        input_error!(
+            "{}: not a valid .npy array: its header is missing, truncated or claims more bytes than the file has",
+            path.display()
+        )
+    })?;
     let npy = npyz::NpyFile::new(&bytes[..]).map_err(corrupt)?;
+    // The data must be in the file: a shape that claims more is refused before allocating it.
+    let claimed = npy
+        .shape()
+        .iter()
+        .try_fold(1u64, |n, &d| n.checked_mul(d))
+        .and_then(|n| n.checked_mul(npy.dtype().num_bytes().unwrap_or(8) as u64));
+    if claimed.is_none_or(|n| n > (bytes.len() - header_end) as u64) {
+        return Err(input_error!(
+            "{}: not a valid .npy array: its shape {:?} claims more data than the file holds",
+            path.display(),
+            npy.shape()
+        ));
+    }
     if npy.order() != npyz::Order::C {
         return Err(input_error!(
             "{}: Fortran-ordered .npy arrays are not supported; save it in C order",
