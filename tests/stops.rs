@@ -275,3 +275,114 @@ fn absurd_settings_are_refused_before_allocation() {
         assert!(!d.join("r").exists(), "{flags:?}: nothing written");
     }
 }
+
+/// Runs `script` (bash, with `$D` the test folder and `$B` the binary) in a new user and mount
+/// namespace, where it may mount small tmpfs file systems; `None` where this machine allows
+/// neither (no user namespaces, no root).
+fn in_mount_namespace(d: &Path, script: &str) -> Option<std::process::Output> {
+    let probe = Command::new("unshare")
+        .args([
+            "-rm",
+            "sh",
+            "-c",
+            "mkdir -p /tmp/.ipfn-probe && mount -t tmpfs -o size=64k tmpfs /tmp/.ipfn-probe",
+        ])
+        .output();
+    if !probe.is_ok_and(|o| o.status.success()) {
+        return None;
+    }
+    Some(
+        Command::new("unshare")
+            .args(["-rm", "bash", "-c", script])
+            .env("D", d)
+            .env("B", env!("CARGO_BIN_EXE_ipfn"))
+            .output()
+            .unwrap(),
+    )
+}
+
+/// A full disk (a small tmpfs): training stops with one line and exit 1, the last checkpoint
+/// stays whole, no temporary file is left, and `--resume` continues once there is space;
+/// `synth` of an image and of a volume fail the same way, leaving nothing.
+#[test]
+fn full_disk_loses_nothing() {
+    let dir = setup();
+    let d = dir.path();
+    let config = ipfn::generator::GeneratorConfig::new()
+        .with_dims(3)
+        .with_channels(1)
+        .with_hidden_layers(2)
+        .with_width(8)
+        .with_crop(16);
+    let mut model = Checkpoint::new();
+    ipfn::generator::GeneratorWeights::random(&config).write_to(&config, &mut model);
+    model.save(&d.join("vol.ipfn")).unwrap();
+    let script = r#"
+        set -u
+        mkdir -p "$D/small" "$D/tiny"
+        mount -t tmpfs -o size=256k tmpfs "$D/small"
+        mount -t tmpfs -o size=32k tmpfs "$D/tiny"
+        cp "$D/ex.png" "$D/tiny.toml" "$D/small/"
+        cd "$D/small"
+        "$B" train ex.png --config tiny.toml --out run --iterations 100000 -q 2> "$D/train.err"
+        echo $? > "$D/train.code"
+        find . -name '*.tmp' > "$D/train.tmps"
+        "$B" synth --model run/latest.ipfn --size 8 --out "$D/check.png" -q
+        echo $? > "$D/check.code"
+        "$B" train --resume run --from-previous --iterations 1 -q 2>/dev/null
+        mount -o remount,size=16m tmpfs "$D/small"
+        it=$(cat run/metrics.csv | tail -1 | cut -d, -f1)
+        "$B" train --resume run --iterations $((it + 2)) -q 2> "$D/resume.err"
+        echo $? > "$D/resume.code"
+        "$B" synth --model run/latest.ipfn --size 8 --out "$D/resumed.png" -q
+        "$B" synth --size 512 --out "$D/tiny/x.png" -q 2> "$D/image.err"
+        echo $? > "$D/image.code"
+        "$B" synth --model "$D/vol.ipfn" --size 40x40x40 --out "$D/tiny/v.npy" -q 2> "$D/volume.err"
+        echo $? > "$D/volume.code"
+        find "$D/tiny" -type f > "$D/tiny.files"
+    "#;
+    let Some(out) = in_mount_namespace(d, script) else {
+        eprintln!("no user or mount namespaces here (unshare -rm): full-disk test not run");
+        return;
+    };
+    assert!(out.status.success(), "{}", stderr(&out));
+    let read = |name: &str| std::fs::read_to_string(d.join(name)).unwrap();
+    assert_eq!(
+        read("train.code").trim(),
+        "1",
+        "training on a full disk: {}",
+        read("train.err")
+    );
+    assert_eq!(
+        read("train.err").trim_end().lines().count(),
+        1,
+        "{}",
+        read("train.err")
+    );
+    assert!(
+        read("train.err").contains("No space left"),
+        "{}",
+        read("train.err")
+    );
+    assert!(
+        read("train.err").contains("ipfn train --resume run"),
+        "{}",
+        read("train.err")
+    );
+    assert_eq!(read("train.tmps"), "", "temporary files left");
+    assert_eq!(read("check.code").trim(), "0", "latest.ipfn is whole");
+    assert_eq!(
+        read("resume.code").trim(),
+        "0",
+        "resume with space: {}",
+        read("resume.err")
+    );
+    assert!(d.join("resumed.png").exists());
+    for what in ["image", "volume"] {
+        let err = read(&format!("{what}.err"));
+        assert_ne!(read(&format!("{what}.code")).trim(), "0", "{what}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{what}: {err}");
+        assert!(err.contains("No space left"), "{what}: {err}");
+    }
+    assert_eq!(read("tiny.files"), "", "nothing left on the full disk");
+}
