@@ -30,14 +30,9 @@ fn main() -> ipfn::Result<()> {
             ZarrType::Float32,
             attributes.clone(),
         )?;
-        let report = painter.write_zarr(&writer, Shard::new(index, 4)?, |_, _| {})?;
-        println!(
-            "shard {index}/4: {} of {} chunks written, {} skipped ({})",
-            report.written,
-            report.chunks,
-            report.skipped,
-            writer.describe()
-        );
+        let shard = Shard::new(index, 4)?;
+        let report = painter.write_zarr(&writer, shard, |_, _| {})?;
+        println!("{} ({})", report.describe(shard), writer.describe());
     }
     Ok(())
 }

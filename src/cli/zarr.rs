@@ -36,25 +36,14 @@ pub(super) fn synth_zarr(
             args.out.display()
         ));
     }
-    let (painter, shape, chunk) = match depth {
-        None => {
-            check_image_flags(args)?;
-            let synth = image_synth(args, device, model.config, model.weights, [height, width])?;
-            (synth.painter()?, vec![height, width], DEFAULT_IMAGE_CHUNK)
-        }
-        Some(depth) => {
-            check_volume_flags(args)?;
-            let mut synth = volume_synth(args, model.config, model.weights, width)?;
-            if args.tile {
-                synth = synth.tile(&[depth, height, width]);
-            }
-            (
-                synth.painter()?,
-                vec![depth, height, width],
-                DEFAULT_VOLUME_CHUNK,
-            )
-        }
-    };
+    let (painter, shape, chunk) = zarr_painter(
+        args,
+        device,
+        model.config,
+        model.weights,
+        [height, width],
+        depth,
+    )?;
     painter.check_axes(shape.len())?;
     let attributes = attributes(args, &model.description, kind);
     let writer = ZarrWriter::create(
@@ -81,16 +70,7 @@ pub(super) fn synth_zarr(
         ));
     }
     let start = Instant::now();
-    let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
-        let bar = indicatif::ProgressBar::new(0);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{bar:40} {pos}/{len} chunks  {elapsed} (eta {eta})",
-            )
-            .expect("valid progress template"),
-        );
-        bar
-    });
+    let bar = chunk_bar(!args.quiet);
     let report = painter.write_zarr(&writer, shard, |done, owned| {
         if let Some(bar) = &bar {
             bar.set_length(owned as u64);
@@ -100,26 +80,60 @@ pub(super) fn synth_zarr(
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
-    let which = if shard.count > 1 {
-        format!("shard {}/{}: ", shard.index, shard.count)
-    } else {
-        String::new()
-    };
-    let skipped = if report.skipped > 0 {
-        format!(", {} already complete and skipped", report.skipped)
-    } else {
-        String::new()
-    };
     say(format!(
-        "wrote {} ({}): {which}{} of {} chunks written{skipped}, seed {}, {device:?}, in {:.2} s",
+        "wrote {} ({}): {}, seed {}, {device:?}, in {:.2} s",
         args.out.display(),
         writer.describe(),
-        report.written,
-        report.chunks,
+        report.describe(shard),
         args.seed,
         start.elapsed().as_secs_f64()
     ));
     Ok(())
+}
+
+/// The painter of a 2D model (image flags) or a 3D one (volume flags), the box it paints and
+/// the default chunk side.
+fn zarr_painter(
+    args: &SynthArgs,
+    device: DeviceChoice,
+    config: crate::generator::GeneratorConfig,
+    weights: crate::generator::GeneratorWeights,
+    [height, width]: [usize; 2],
+    depth: Option<usize>,
+) -> Result<(crate::synth::Painter, Vec<usize>, usize)> {
+    Ok(match depth {
+        None => {
+            check_image_flags(args)?;
+            let synth = image_synth(args, device, config, weights, [height, width])?;
+            (synth.painter()?, vec![height, width], DEFAULT_IMAGE_CHUNK)
+        }
+        Some(depth) => {
+            check_volume_flags(args)?;
+            let mut synth = volume_synth(args, config, weights, width)?;
+            if args.tile {
+                synth = synth.tile(&[depth, height, width]);
+            }
+            (
+                synth.painter()?,
+                vec![depth, height, width],
+                DEFAULT_VOLUME_CHUNK,
+            )
+        }
+    })
+}
+
+/// A progress bar over chunks, on a terminal when `show`.
+fn chunk_bar(show: bool) -> Option<indicatif::ProgressBar> {
+    (show && std::io::stderr().is_terminal()).then(|| {
+        let bar = indicatif::ProgressBar::new(0);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} chunks  {elapsed} (eta {eta})",
+            )
+            .expect("valid progress template"),
+        );
+        bar
+    })
 }
 
 /// The shard this worker renders: `--shard`, `--shard-from-env`, or the whole array.

@@ -173,6 +173,26 @@ pub struct ZarrReport {
     pub skipped: usize,
 }
 
+impl ZarrReport {
+    /// E.g. `shard 1/3: 3 of 9 chunks written, 2 already complete and skipped`.
+    pub fn describe(&self, shard: Shard) -> String {
+        let which = if shard.count > 1 {
+            format!("shard {}/{}: ", shard.index, shard.count)
+        } else {
+            String::new()
+        };
+        let skipped = if self.skipped > 0 {
+            format!(", {} already complete and skipped", self.skipped)
+        } else {
+            String::new()
+        };
+        format!(
+            "{which}{} of {} chunks written{skipped}",
+            self.written, self.chunks
+        )
+    }
+}
+
 /// A filesystem store whose writes are atomic (temporary file, then rename), which is all that
 /// `zarrs` needs of a store to encode and write chunks.
 struct AtomicStore {
