@@ -52,7 +52,8 @@ pub fn install(mode: OnSignal) {
                     continue;
                 }
                 remove_temporaries();
-                std::process::exit(128 + signal);
+                // `_exit`: no atexit handlers (a GPU driver's teardown) racing the main thread.
+                signal_hook::low_level::exit(128 + signal);
             }
         });
     });

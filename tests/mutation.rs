@@ -35,11 +35,9 @@ fn every_format_survives_mutated_inputs() {
             tally.refused,
             tally.peak_bytes >> 10
         );
-        assert!(
-            tally.refused > 0,
-            "{}: no mutation was refused",
-            format.name
-        );
+        if tally.refused == 0 {
+            problems.push(format!("{}: no mutation was refused", format.name));
+        }
         problems.extend(tally.problems);
     }
     let _ = std::panic::take_hook();

@@ -157,9 +157,17 @@ fn killed_shard_rerun_completes_the_array() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let args = [
-        "synth", "--size", "640x512", "--seed", "4", "--chunk", "32", "--out", "k.zarr",
+        "synth",
+        "--size",
+        "1024x1024",
+        "--seed",
+        "4",
+        "--chunk",
+        "32",
+        "--out",
+        "k.zarr",
     ];
-    let total = 20 * 16;
+    let total = 32 * 32;
     let mut worker = spawn(d, &args);
     let store = d.join("k.zarr");
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
@@ -184,7 +192,13 @@ fn killed_shard_rerun_completes_the_array() {
     let out = ipfn(
         d,
         &[
-            "synth", "--size", "640x512", "--seed", "4", "--out", "k.npy",
+            "synth",
+            "--size",
+            "1024x1024",
+            "--seed",
+            "4",
+            "--out",
+            "k.npy",
         ],
     );
     assert!(out.status.success(), "{}", stderr(&out));

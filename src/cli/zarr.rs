@@ -174,7 +174,9 @@ fn attributes(
         "density": args.density.map(|(a, b)| [a, b]),
         "device": args.device,
         "values": values,
-        "command": worker_independent_command(std::env::args()),
+        "command": worker_independent_command(
+            std::env::args_os().map(|a| a.to_string_lossy().into_owned()),
+        ),
     });
     let mut map = serde_json::Map::new();
     map.insert("ipfn".to_string(), ipfn);

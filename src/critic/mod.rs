@@ -47,6 +47,9 @@ pub struct CriticConfig {
     pub slope: f64,
 }
 
+/// The most parameters a critic may have: 2^26 (the paper's has 2.8M).
+pub const MAX_CRITIC_PARAMETERS: usize = 1 << 26;
+
 impl CriticConfig {
     /// Side of the last feature map.
     pub fn final_side(&self) -> usize {
@@ -66,6 +69,20 @@ impl CriticConfig {
         {
             return Err(input_error!(
                 "critic_widths = {:?}: 1 to 8 layers of 1 to 4096 channels",
+                self.widths
+            ));
+        }
+        // Weights: 4^axes taps per input and output channel pair.
+        let taps = 4usize.pow(self.axes as u32);
+        let parameters: usize = std::iter::once(self.channels)
+            .chain(self.widths.iter().copied())
+            .collect::<Vec<_>>()
+            .windows(2)
+            .map(|w| w[0] * w[1] * taps)
+            .sum();
+        if parameters > MAX_CRITIC_PARAMETERS {
+            return Err(input_error!(
+                "critic_widths = {:?}: {parameters} critic parameters, at most {MAX_CRITIC_PARAMETERS}",
                 self.widths
             ));
         }

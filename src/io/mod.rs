@@ -104,7 +104,10 @@ pub struct AtomicFile {
 impl Drop for AtomicFile {
     fn drop(&mut self) {
         if let Some(temp) = self.temp.take() {
-            crate::stop::forget_temporary(temp.path());
+            // Remove, then forget: a signal in between still finds the file listed.
+            let path = temp.path().to_path_buf();
+            drop(temp);
+            crate::stop::forget_temporary(&path);
         }
     }
 }
@@ -142,7 +145,14 @@ impl AtomicFile {
             .prefix(&format!(".{name}."))
             .suffix(".tmp")
             .tempfile_in(dir)
-            .map_err(|e| input_error!("{}: cannot write: {e}", path.display()))?;
+            .map_err(|e| match e.kind() {
+                // The user's to fix: a folder they cannot write to.
+                std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::NotFound => {
+                    input_error!("{}: cannot write: {e}", path.display())
+                }
+                // The machine's: a full disk, a read-only or lost mount.
+                _ => Error::Runtime(format!("{}: cannot write: {e}", path.display())),
+            })?;
         crate::stop::register_temporary(temp.path());
         Ok(Self {
             temp: Some(temp),

@@ -25,6 +25,8 @@ use crate::input_error;
 /// for volumes.
 pub const DEFAULT_IMAGE_CHUNK: usize = 512;
 pub const DEFAULT_VOLUME_CHUNK: usize = 64;
+/// The most values in one chunk (all channels): 2^26, 256 MiB as float32. Memory holds one chunk.
+pub const MAX_CHUNK_VALUES: usize = 1 << 26;
 
 /// The element type of the stored array.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -93,8 +95,9 @@ impl Shard {
 
     /// The shard from a batch engine's environment, read through `env`:
     /// - the index from `var` when given, else `JOB_COMPLETION_INDEX` (a Kubernetes Indexed
-    ///   Job), else `SLURM_ARRAY_TASK_ID` less `SLURM_ARRAY_TASK_MIN` (a SLURM job array, so
-    ///   `--array=1-8` works as well as `0-7`);
+    ///   Job), else `SLURM_ARRAY_TASK_ID` less `SLURM_ARRAY_TASK_MIN`, over
+    ///   `SLURM_ARRAY_TASK_STEP` (a SLURM job array: `--array=1-8` and `--array=0-28:4` work as
+    ///   well as `0-7`);
     /// - the count from `count`, else `SLURM_ARRAY_TASK_COUNT`.
     pub fn from_env(
         var: Option<&str>,
@@ -123,9 +126,13 @@ impl Shard {
                         Some(m) => number("SLURM_ARRAY_TASK_MIN", m)?,
                         None => 0,
                     };
+                    let step = match env("SLURM_ARRAY_TASK_STEP") {
+                        Some(s) => number("SLURM_ARRAY_TASK_STEP", s)?.max(1),
+                        None => 1,
+                    };
                     id.checked_sub(min).ok_or_else(|| {
                         input_error!("--shard-from-env: SLURM_ARRAY_TASK_ID {id} is below SLURM_ARRAY_TASK_MIN {min}")
-                    })?
+                    })? / step
                 }
                 (None, None) => {
                     return Err(input_error!(
@@ -248,6 +255,27 @@ impl WritableStorageTraits for AtomicStore {
     }
 }
 
+/// Writes `bytes` as `file` if no `file` exists, atomically: a temporary file is hard-linked to
+/// the name, which fails where another process published first. Returns whether we published.
+fn publish_new(file: &Path, bytes: &[u8]) -> Result<bool> {
+    use std::io::Write;
+    let failed =
+        |e: std::io::Error| Error::Runtime(format!("{}: cannot write: {e}", file.display()));
+    let dir = file.parent().unwrap_or(Path::new("."));
+    let mut temp = tempfile::Builder::new()
+        .prefix(".zarr.json.")
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(failed)?;
+    temp.write_all(bytes).map_err(failed)?;
+    temp.as_file().sync_all().map_err(failed)?;
+    match std::fs::hard_link(temp.path(), file) {
+        Ok(()) => Ok(true),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
+        Err(e) => Err(failed(e)),
+    }
+}
+
 /// A Zarr v3 array on disk, opened for writing chunks: its shape is the painted box's shape
 /// followed by the channels.
 pub struct ZarrWriter {
@@ -288,6 +316,15 @@ impl ZarrWriter {
             return Err(input_error!(
                 "{shown}: cannot write: folder {} does not exist",
                 parent.display()
+            ));
+        }
+        let values = (0..shape.len())
+            .try_fold(channels, |n, _| n.checked_mul(chunk))
+            .filter(|&n| n <= MAX_CHUNK_VALUES);
+        if values.is_none() {
+            return Err(input_error!(
+                "{shown}: --chunk {chunk}: a chunk of {chunk}^{} x {channels} values is over {MAX_CHUNK_VALUES} (256 MiB of float32); use a smaller chunk",
+                shape.len()
             ));
         }
         if shape.contains(&0) || channels == 0 {
@@ -334,7 +371,10 @@ impl ZarrWriter {
     /// Writes `zarr.json`, or checks that the one there describes this very array.
     fn create_or_check_metadata(&self) -> Result<()> {
         let shown = self.path.display();
-        let metadata = self.array.metadata_opt(&ArrayMetadataOptions::default());
+        // Without zarrs' own version attribute: workers built with another zarrs release still
+        // write the same metadata.
+        let options = ArrayMetadataOptions::default().with_include_zarrs_metadata(false);
+        let metadata = self.array.metadata_opt(&options);
         let ours = serde_json::to_value(&metadata)
             .map_err(|e| Error::Runtime(format!("{shown}: cannot describe the array: {e}")))?;
         let file = self.path.join("zarr.json");
@@ -378,7 +418,12 @@ impl ZarrWriter {
                 std::fs::create_dir_all(&self.path)
                     .map_err(|e| input_error!("{shown}: cannot create the store: {e}"))?;
                 let text = serde_json::to_vec_pretty(&ours).expect("JSON values serialise");
-                write_atomic(&file, &text)
+                if publish_new(&file, &text)? {
+                    Ok(())
+                } else {
+                    // Another worker published first: check that it is the same array.
+                    self.create_or_check_metadata()
+                }
             }
             Err(e) => Err(input_error!("{}: cannot read: {e}", file.display())),
         }
@@ -574,6 +619,15 @@ mod tests {
         assert_eq!(
             Shard::from_env(None, None, slurm).unwrap(),
             Shard { index: 4, count: 8 }
+        );
+        let stepped = env(&[
+            ("SLURM_ARRAY_TASK_ID", "28"),
+            ("SLURM_ARRAY_TASK_STEP", "4"),
+            ("SLURM_ARRAY_TASK_COUNT", "8"),
+        ]);
+        assert_eq!(
+            Shard::from_env(None, None, stepped).unwrap(),
+            Shard { index: 7, count: 8 }
         );
         let named = Shard::from_env(Some("I"), Some(2), env(&[("I", "1")])).unwrap();
         assert_eq!(named, Shard { index: 1, count: 2 });

@@ -177,10 +177,17 @@ impl RunKind {
 impl TrainConfig {
     /// Parses TOML; `source` names the file in errors.
     pub fn from_toml(text: &str, source: &Path) -> Result<Self> {
-        toml::from_str(text).map_err(|e| {
+        let config: Self = toml::from_str(text).map_err(|e| {
             let msg = e.message().replace('\n', " ");
             input_error!("{}: {msg}", source.display())
-        })
+        })?;
+        // Values are checked here too, so an error names the file that holds them.
+        if let Ok(kind) = config.run_kind() {
+            config
+                .check_values(&kind)
+                .map_err(|e| input_error!("{}: {e}", source.display()))?;
+        }
+        Ok(config)
     }
 
     /// Reads a TOML config file, and the keys it sets.
@@ -269,12 +276,20 @@ impl TrainConfig {
                 return Err(input_error!("{name} = {value}: at most {max}"));
             }
         }
+        // The crops, and the critic's first (widest) activation at half the crop's side.
+        let first = self.critic_widths.first().copied().unwrap_or(1);
+        let activation = (0..kind.crop_axes())
+            .try_fold(self.batch.saturating_mul(first), |n, _| {
+                n.checked_mul(self.crop / 2)
+            })
+            .filter(|&n| n <= 4 * MAX_BATCH_VALUES);
         let values = (0..kind.crop_axes())
             .try_fold(self.batch, |n, _| n.checked_mul(self.crop))
-            .filter(|&n| n <= MAX_BATCH_VALUES);
+            .filter(|&n| n <= MAX_BATCH_VALUES)
+            .and(activation);
         if values.is_none() {
             return Err(input_error!(
-                "batch {} of {}-pixel crops over {} axes: more than {MAX_BATCH_VALUES} values per batch; use a smaller batch or crop",
+                "batch {} of {}-pixel crops over {} axes: more than {MAX_BATCH_VALUES} values per batch (or 4x that in the critic's first layer); use a smaller batch, crop or critic",
                 self.batch,
                 self.crop,
                 kind.crop_axes()
@@ -284,6 +299,13 @@ impl TrainConfig {
     }
 
     pub fn validate(&self, kind: &RunKind, exemplar: &Exemplar, path: &Path) -> Result<()> {
+        self.check_values(kind)?;
+        self.validate_for(kind, exemplar, path)
+    }
+
+    /// The checks that need no exemplar: counts at least 1, rates positive and finite, sizes
+    /// within bounds, a valid time budget and K.
+    pub fn check_values(&self, kind: &RunKind) -> Result<()> {
         let positive = [
             ("iterations", self.iterations as usize),
             ("batch", self.batch),
@@ -323,6 +345,12 @@ impl TrainConfig {
                 kind.generator_axes()
             ));
         }
+        // The networks' shapes (the exemplar's channels only size the output layer).
+        self.generator_config(kind, 1).validate()?;
+        self.critic_config(kind, 1).validate()
+    }
+
+    fn validate_for(&self, kind: &RunKind, exemplar: &Exemplar, path: &Path) -> Result<()> {
         if let RunKind::Volume { .. } = kind {
             if self.resize != 1.0 {
                 return Err(input_error!(

@@ -44,7 +44,9 @@ impl RunLock {
                 ));
             }
             // A file system without locks (some network mounts): train unguarded.
-            Err(TryLockError::Error(e)) if e.kind() == std::io::ErrorKind::Unsupported => {}
+            // ENOLCK (37): NFS without a lock daemon, some FUSE and CIFS mounts.
+            Err(TryLockError::Error(e))
+                if e.kind() == std::io::ErrorKind::Unsupported || e.raw_os_error() == Some(37) => {}
             Err(TryLockError::Error(e)) => {
                 return Err(Error::Runtime(format!(
                     "{}: cannot lock: {e}",

@@ -189,6 +189,12 @@ impl Trainer {
             (Err(e @ crate::Error::Input(_)), RunState::Latest) => {
                 Err(run::offer_previous(run_dir, e))
             }
+            (Ok(trainer), RunState::Previous) => {
+                // The first checkpoint would make the damaged latest.ipfn the new
+                // previous.ipfn: put previous.ipfn in its place first.
+                run::restore_previous(run_dir)?;
+                Ok(trainer)
+            }
             (resumed, _) => resumed,
         }
     }

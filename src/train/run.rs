@@ -75,6 +75,20 @@ pub(super) fn offer_previous(run_dir: &Path, error: Error) -> Error {
     }
 }
 
+/// Sets a damaged `latest.ipfn` aside (as `latest.ipfn.damaged`) and makes `previous.ipfn` the
+/// latest state again, so a run resumed from it keeps one good state whatever happens next.
+pub(super) fn restore_previous(run_dir: &Path) -> Result<()> {
+    let latest = run_dir.join(RunState::Latest.file_name());
+    let previous = run_dir.join(RunState::Previous.file_name());
+    let failed = |e: std::io::Error| Error::Runtime(format!("{}: {e}", latest.display()));
+    if latest.exists() {
+        std::fs::rename(&latest, run_dir.join("latest.ipfn.damaged")).map_err(failed)?;
+    }
+    let bytes = std::fs::read(&previous)
+        .map_err(|e| Error::Runtime(format!("{}: cannot read: {e}", previous.display())))?;
+    crate::io::write_atomic(&latest, &bytes)
+}
+
 /// Makes `previous.ipfn` the current `latest.ipfn` (a hard link, else a copy), before a new
 /// `latest.ipfn` replaces it: the run folder always holds two full states.
 fn keep_previous(run_dir: &Path) -> Result<()> {
@@ -86,8 +100,9 @@ fn keep_previous(run_dir: &Path) -> Result<()> {
     let link = run_dir.join(".previous.ipfn.link");
     let _ = std::fs::remove_file(&link);
     let linked = std::fs::hard_link(&latest, &link).and_then(|_| std::fs::rename(&link, &previous));
+    // Renaming a link onto a name of the same file does nothing and leaves the link.
+    let _ = std::fs::remove_file(&link);
     if linked.is_err() {
-        let _ = std::fs::remove_file(&link);
         let bytes = std::fs::read(&latest)
             .map_err(|e| Error::Runtime(format!("{}: cannot read: {e}", latest.display())))?;
         crate::io::write_atomic(&previous, &bytes)?;
