@@ -127,7 +127,7 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
     })
     .map_err(|e| match e {
         // A write failed (a full disk, a lost mount): what was saved before is whole.
-        crate::Error::Runtime(m) => crate::Error::Runtime(format!(
+        crate::Error::Runtime(m) if run_dir.join("latest.ipfn").exists() => crate::Error::Runtime(format!(
             "{m}; the last checkpoint is intact: once the cause is fixed (a full disk: free space), continue with `ipfn train --resume {}`",
             run_dir.display()
         )),
