@@ -184,7 +184,16 @@ impl Trainer {
             ));
         }
         let lock = lock::RunLock::acquire(run_dir)?;
-        let resumed = Self::resume_file(run_dir, &file, lock, iterations, device);
+        let resumed = Self::resume_file(run_dir, &file, lock, iterations, device).map_err(|e| {
+            // What the state file says (its config, its exemplar's fingerprint) decides the
+            // refusal: name the file.
+            match e {
+                crate::Error::Input(m) if !m.contains(&file.display().to_string()) => {
+                    input_error!("{}: {m}", file.display())
+                }
+                e => e,
+            }
+        });
         match (resumed, state) {
             (Err(e @ crate::Error::Input(_)), RunState::Latest) => {
                 Err(run::offer_previous(run_dir, e))

@@ -27,6 +27,10 @@ f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\
 const TINY_TOML: &str = "batch = 2\ncrop = 16\ncritic_widths = [4, 8, 8, 8]\nhidden_layers = 2\n\
 width = 16\nlr = 2e-4\ncheckpoint_every = 1\nresize = 0.5\niterations = 10\ntime = \"5m\"\n";
 
+const RUN_TOML: &str = "batch = 2\ncrop = 16\ncritic_widths = [4, 8, 8, 8]\nhidden_layers = 2\n\
+width = 8\niterations = 2\ncheckpoint_every = 1\npreview_every = 100\nlog_every = 100\n\
+score_samples = 0\n";
+
 /// The valid files and the loaders the CLI runs on them.
 pub fn formats(dir: &Path) -> Vec<Format> {
     let rgb = image::DynamicImage::ImageRgb8(image::RgbImage::from_fn(24, 20, |x, y| {
@@ -54,7 +58,34 @@ pub fn formats(dir: &Path) -> Vec<Format> {
         ipfn::generator::GeneratorWeights::random(&config).write_to(&config, &mut m);
         m.to_bytes()
     };
+    let run_state = {
+        // A run folder after 2 iterations of a tiny run; its exemplar at an absolute path.
+        std::fs::write(
+            dir.join("ex.png"),
+            encode(rgb.clone(), image::ImageFormat::Png),
+        )
+        .unwrap();
+        let config: ipfn::train::TrainConfig = toml::from_str(RUN_TOML).unwrap();
+        let device = burn::prelude::Device::flex();
+        let run = dir.join("run");
+        let mut trainer =
+            ipfn::train::Trainer::start(config, dir.join("ex.png"), &run, &device).unwrap();
+        trainer
+            .run(&std::sync::atomic::AtomicBool::new(false), |_, _| {})
+            .unwrap();
+        std::fs::read(run.join("latest.ipfn")).unwrap()
+    };
     vec![
+        Format {
+            name: "run state (latest.ipfn)",
+            file_name: "run/latest.ipfn",
+            valid: run_state,
+            text: false,
+            load: |p| {
+                let run = p.parent().expect("in the run folder");
+                ipfn::train::Trainer::resume(run, None, &burn::prelude::Device::flex()).map(drop)
+            },
+        },
         Format {
             name: "PNG 8-bit",
             file_name: "m.png",
