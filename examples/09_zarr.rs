@@ -9,7 +9,8 @@ use std::path::Path;
 
 use ipfn::checkpoint::Checkpoint;
 use ipfn::generator::GeneratorWeights;
-use ipfn::io::zarr::{DEFAULT_IMAGE_CHUNK, Shard, ZarrType, ZarrWriter};
+use ipfn::io::shard::Shard;
+use ipfn::io::zarr::{DEFAULT_IMAGE_CHUNK, ZarrType, ZarrWriter};
 use ipfn::synth::Synth;
 
 fn main() -> ipfn::Result<()> {

@@ -11,30 +11,6 @@ use std::time::Duration;
 use common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 
-const TINY: &str = r#"
-batch = 2
-crop = 16
-critic_steps = 2
-generator_steps = 2
-critic_widths = [4, 8, 8, 8]
-hidden_layers = 2
-width = 16
-checkpoint_every = 1
-preview_every = 2
-log_every = 1
-"#;
-
-fn setup() -> tempfile::TempDir {
-    let dir = tempfile::tempdir().unwrap();
-    let out = ipfn(
-        dir.path(),
-        &["draw", "stripes", "--size", "48", "-o", "ex.png"],
-    );
-    assert!(out.status.success(), "{}", stderr(&out));
-    std::fs::write(dir.path().join("tiny.toml"), TINY).unwrap();
-    dir
-}
-
 fn metrics_rows(run: &Path) -> usize {
     std::fs::read_to_string(run.join("metrics.csv")).map_or(0, |s| s.lines().count().max(1) - 1)
 }
@@ -94,7 +70,7 @@ const TRAIN: [&str; 8] = [
 
 #[test]
 fn sigterm_saves_a_checkpoint_and_exits_143() {
-    let dir = setup();
+    let dir = common::tiny_run_folder();
     let d = dir.path();
     let child = train_until(d, &TRAIN, "run", 3);
     signal(&child, "-TERM");
@@ -125,7 +101,7 @@ fn sigterm_saves_a_checkpoint_and_exits_143() {
 /// A second signal exits at once, and what is on disk is still whole.
 #[test]
 fn second_signal_exits_at_once_leaving_whole_files() {
-    let dir = setup();
+    let dir = common::tiny_run_folder();
     let d = dir.path();
     let child = train_until(d, &TRAIN, "run", 3);
     signal(&child, "-TERM");
@@ -174,7 +150,7 @@ fn stopped_synth_leaves_no_temporary_file() {
 /// killed process does not block.
 #[test]
 fn one_writer_per_run_folder() {
-    let dir = setup();
+    let dir = common::tiny_run_folder();
     let d = dir.path();
     let mut child = train_until(d, &TRAIN, "run", 2);
     let second = ipfn(d, &["train", "--resume", "run", "--quiet"]);
@@ -205,7 +181,7 @@ fn one_writer_per_run_folder() {
 /// `--from-previous` resumes from it.
 #[test]
 fn damaged_latest_offers_previous() {
-    let dir = setup();
+    let dir = common::tiny_run_folder();
     let d = dir.path();
     let out = ipfn(d, &[&TRAIN[..6], &["--iterations", "3"]].concat());
     assert!(out.status.success(), "{}", stderr(&out));
@@ -248,7 +224,7 @@ fn damaged_latest_offers_previous() {
 /// allocation (the issue's config once took 11 GB and hung).
 #[test]
 fn absurd_settings_are_refused_before_allocation() {
-    let dir = setup();
+    let dir = common::tiny_run_folder();
     let d = dir.path();
     std::fs::write(
         d.join("huge.toml"),
@@ -306,7 +282,7 @@ fn in_mount_namespace(d: &Path, script: &str) -> Option<std::process::Output> {
 /// `synth` of an image and of a volume fail the same way, leaving nothing.
 #[test]
 fn full_disk_loses_nothing() {
-    let dir = setup();
+    let dir = common::tiny_run_folder();
     let d = dir.path();
     let config = ipfn::generator::GeneratorConfig::new()
         .with_dims(3)

@@ -12,37 +12,9 @@ use common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::train::{TrainConfig, Trainer};
 
-/// A tiny model and critic so that an iteration takes milliseconds.
-const TINY: &str = r#"
-batch = 2
-crop = 16
-critic_steps = 2
-generator_steps = 2
-critic_widths = [4, 8, 8, 8]
-hidden_layers = 2
-width = 16
-checkpoint_every = 1
-preview_every = 2
-log_every = 1
-"#;
-
-fn setup() -> tempfile::TempDir {
-    let dir = tempfile::tempdir().unwrap();
-    assert!(
-        ipfn(
-            dir.path(),
-            &["draw", "stripes", "--size", "48", "-o", "ex.png"]
-        )
-        .status
-        .success()
-    );
-    std::fs::write(dir.path().join("tiny.toml"), TINY).unwrap();
-    dir
-}
-
 #[test]
 fn resume_continues_bit_exactly() {
-    let dir = setup();
+    let dir = common::tiny_run_folder();
     let d = dir.path();
     let run = |args: &[&str]| {
         let out = ipfn(d, args);
@@ -142,7 +114,7 @@ fn start_and_wait(d: &Path, out: &str, rows: usize) -> std::process::Child {
 
 #[test]
 fn ctrl_c_saves_a_checkpoint_and_exits_130() {
-    let dir = setup();
+    let dir = common::tiny_run_folder();
     let d = dir.path();
     let mut child = start_and_wait(d, "run", 3);
     let pid = child.id().to_string();
@@ -167,7 +139,7 @@ fn ctrl_c_saves_a_checkpoint_and_exits_130() {
 
 #[test]
 fn kill_9_never_leaves_a_broken_checkpoint() {
-    let dir = setup();
+    let dir = common::tiny_run_folder();
     let d = dir.path();
     let mut child = start_and_wait(d, "run", 5);
     child.kill().unwrap(); // SIGKILL
@@ -211,7 +183,7 @@ fn kill_9_never_leaves_a_broken_checkpoint() {
 
 #[test]
 fn bad_training_input_gets_one_line_and_exit_code_2() {
-    let dir = setup();
+    let dir = common::tiny_run_folder();
     let d = dir.path();
     assert_error(
         &ipfn(d, &["train", "ex.png", "--crop", "40"]),
@@ -352,7 +324,7 @@ fn trains_on_wgpu() {
     if common::skip_wgpu() {
         return;
     }
-    let dir = setup();
+    let dir = common::tiny_run_folder();
     let d = dir.path();
     let out = ipfn(
         d,
@@ -387,7 +359,7 @@ fn trains_on_wgpu() {
 /// channel.
 #[test]
 fn fused_and_burn_fake_crops_agree() {
-    let dir = setup();
+    let dir = common::tiny_run_folder();
     let config = TrainConfig {
         batch: 3,
         crop: 16,

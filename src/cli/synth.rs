@@ -97,7 +97,7 @@ pub struct SynthArgs {
     /// so N workers, on one machine or many, fill one store. Rerunning a shard skips the
     /// chunks it finished.
     #[arg(long, value_name = "K/N", conflicts_with = "shard_from_env")]
-    pub shard: Option<crate::io::zarr::Shard>,
+    pub shard: Option<crate::io::shard::Shard>,
     /// For .zarr output: take K of --shard from the environment: VAR, else
     /// JOB_COMPLETION_INDEX (Kubernetes Indexed Job), else SLURM_ARRAY_TASK_ID (less
     /// SLURM_ARRAY_TASK_MIN). N is --shards, else SLURM_ARRAY_TASK_COUNT.
@@ -249,10 +249,7 @@ fn synth_image(args: &SynthArgs, device: DeviceChoice, [height, width]: [usize; 
             eprintln!("{s}");
         }
     };
-    say(format!("model: {}", model.description));
-    if let Some(t) = painter.tile_adjustment() {
-        say(t.describe());
-    }
+    say_model(&say, &model.description, &painter);
     let start = Instant::now();
     let bar = row_bar(!args.quiet && width * height >= 1 << 22, height);
     painter.write_maps(&outputs, [height, width], DEFAULT_BAND_PIXELS, |rows| {
@@ -274,6 +271,14 @@ fn synth_image(args: &SynthArgs, device: DeviceChoice, [height, width]: [usize; 
         start.elapsed().as_secs_f64()
     ));
     Ok(())
+}
+
+/// Says which model paints and, for a tile, how far K moved.
+pub(super) fn say_model(say: &impl Fn(String), model: &str, painter: &crate::synth::Painter) {
+    say(format!("model: {model}"));
+    if let Some(t) = painter.tile_adjustment() {
+        say(t.describe());
+    }
 }
 
 /// An error for the flags that only volumes take, given for an image.

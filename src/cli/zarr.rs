@@ -4,11 +4,14 @@ use std::io::IsTerminal;
 use std::path::Path;
 use std::time::Instant;
 
-use super::synth::{SynthArgs, check_image_flags, check_volume_flags, image_synth, volume_synth};
+use super::synth::{
+    SynthArgs, check_image_flags, check_volume_flags, image_synth, say_model, volume_synth,
+};
 use crate::device::DeviceChoice;
 use crate::error::Result;
 use crate::input_error;
-use crate::io::zarr::{DEFAULT_IMAGE_CHUNK, DEFAULT_VOLUME_CHUNK, Shard, ZarrType, ZarrWriter};
+use crate::io::shard::Shard;
+use crate::io::zarr::{DEFAULT_IMAGE_CHUNK, DEFAULT_VOLUME_CHUNK, ZarrType, ZarrWriter};
 use crate::model::choose_model;
 
 /// The flags that make one worker differ from another of the same render; they are left out of
@@ -59,10 +62,7 @@ pub(super) fn synth_zarr(
             eprintln!("{s}");
         }
     };
-    say(format!("model: {}", model.description));
-    if let Some(t) = painter.tile_adjustment() {
-        say(t.describe());
-    }
+    say_model(&say, &model.description, &painter);
     let removed = writer.remove_stale_temporaries(|n| shard.owns(n));
     if removed > 0 {
         say(format!(

@@ -12,6 +12,7 @@ use npyz::WriterBuilder;
 use crate::error::{Error, Result};
 use crate::input_error;
 
+pub mod shard;
 mod volume;
 pub mod zarr;
 pub use volume::{MAX_SLICE_VOXELS, VolumeFormat, VolumeWriter, check_volume_size};

@@ -133,3 +133,30 @@ pub fn last_metrics_row(run: &Path) -> Vec<f32> {
         .map(|v| v.parse().unwrap())
         .collect()
 }
+
+/// A tiny model and critic so that a training iteration takes milliseconds, checkpointing every
+/// iteration.
+pub const TINY: &str = r#"
+batch = 2
+crop = 16
+critic_steps = 2
+generator_steps = 2
+critic_widths = [4, 8, 8, 8]
+hidden_layers = 2
+width = 16
+checkpoint_every = 1
+preview_every = 2
+log_every = 1
+"#;
+
+/// A folder with a 48 px stripes exemplar (`ex.png`) and [`TINY`] as `tiny.toml`.
+pub fn tiny_run_folder() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let out = ipfn(
+        dir.path(),
+        &["draw", "stripes", "--size", "48", "-o", "ex.png"],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    std::fs::write(dir.path().join("tiny.toml"), TINY).unwrap();
+    dir
+}
