@@ -43,5 +43,6 @@ pub mod sample;
 pub mod stop;
 pub mod synth;
 pub mod train;
+pub mod view;
 
 pub use error::{Error, Result};

@@ -7,6 +7,7 @@ mod eval;
 mod synth;
 mod tools;
 mod train;
+mod view;
 mod zarr;
 
 use clap::{Parser, Subcommand};
@@ -17,6 +18,7 @@ pub use eval::EvalArgs;
 pub use synth::{Size, SynthArgs};
 pub use tools::{DrawArgs, ImportArgs, VoxelizeArgs};
 pub use train::TrainArgs;
+pub use view::ViewArgs;
 
 #[derive(Debug, Parser)]
 #[command(
@@ -54,6 +56,9 @@ pub enum Command {
     Eval(EvalArgs),
     /// Time synthesis and training on this machine's devices, beside floors measured now.
     Bench(BenchArgs),
+    /// Pan and zoom a model's plane in a browser, and follow a training run live (a local web
+    /// page; prints its address).
+    View(ViewArgs),
 }
 
 /// Parses the process arguments and runs the command.
@@ -69,5 +74,6 @@ pub fn run() -> Result<()> {
         Command::Voxelize(args) => tools::voxelize(args),
         Command::Eval(args) => eval::eval(args),
         Command::Bench(args) => bench::bench(args),
+        Command::View(args) => view::view(args),
     }
 }

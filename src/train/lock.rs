@@ -27,7 +27,16 @@ impl RunLock {
             .truncate(false)
             .open(&path)
             .map_err(|e| input_error!("{}: cannot open: {e}", path.display()))?;
-        match file.try_lock() {
+        // `ipfn view` probes the lock for a moment with a shared lock: retry briefly.
+        let mut attempt = file.try_lock();
+        for _ in 0..20 {
+            if !matches!(attempt, Err(TryLockError::WouldBlock)) {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(25));
+            attempt = file.try_lock();
+        }
+        match attempt {
             Ok(()) => {}
             Err(TryLockError::WouldBlock) => {
                 let mut holder = String::new();

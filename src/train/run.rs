@@ -1,5 +1,6 @@
-//! The run folder (`config.toml`, `latest.ipfn`, `checkpoints/`, `previews/`, `metrics.csv`) and
-//! the training loop that fills it ([`Trainer::run`]), which the CLI and the examples call.
+//! The run folder (`config.toml`, `latest.ipfn`, `checkpoints/`, `previews/`, `metrics.csv`,
+//! `report.html`) and the training loop that fills it ([`Trainer::run`]), which the CLI and the
+//! examples call.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -159,9 +160,11 @@ impl Trainer {
                 self.save_preview()?;
             }
             if stopped {
+                crate::view::run::write_report(&self.run_dir, "stopped")?;
                 return Ok(RunEnd::Stopped);
             }
         }
+        crate::view::run::write_report(&self.run_dir, "finished")?;
         Ok(RunEnd::Finished)
     }
 

@@ -1,0 +1,722 @@
+//! `ipfn view`: tiles equal `ipfn synth`, bad requests get 400, runs are followed live and
+//! reported, exports go through synth, Ctrl-C leaves nothing behind, load does not stall the
+//! page, and headless chromium shows the plane and the run.
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{TINY, ipfn, stderr, tiny_run_folder};
+
+/// A running `ipfn view`, killed when dropped.
+struct Viewer {
+    child: Child,
+    url: String,
+}
+
+impl Drop for Viewer {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn view(dir: &Path, args: &[&str]) -> Viewer {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ipfn"))
+        .arg("view")
+        .args(args)
+        .current_dir(dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    assert!(line.starts_with("http://127.0.0.1:"), "printed {line:?}");
+    Viewer {
+        child,
+        url: line.trim().trim_end_matches('/').to_string(),
+    }
+}
+
+fn agent() -> ureq::Agent {
+    ureq::Agent::config_builder()
+        .http_status_as_error(false)
+        .timeout_global(Some(Duration::from_secs(120)))
+        .build()
+        .into()
+}
+
+/// GET (or POST) `path` of the viewer: status and body.
+fn fetch(viewer: &Viewer, method: &str, path: &str) -> (u16, Vec<u8>) {
+    let url = format!("{}{path}", viewer.url);
+    let mut response = match method {
+        "POST" => agent().post(&url).send_empty(),
+        _ => agent().get(&url).call(),
+    }
+    .unwrap();
+    let body = response
+        .body_mut()
+        .with_config()
+        .limit(1 << 30)
+        .read_to_vec()
+        .unwrap();
+    (response.status().as_u16(), body)
+}
+
+/// Decoded 8-bit pixels of a PNG: (width, height, bytes).
+fn pixels(png: &[u8]) -> (u32, u32, Vec<u8>) {
+    let image = image::load_from_memory(png).unwrap();
+    (image.width(), image.height(), image.into_bytes())
+}
+
+fn synth(dir: &Path, args: &[&str]) -> (u32, u32, Vec<u8>) {
+    let mut all = vec!["synth", "-q", "--out", "expected.png"];
+    all.extend_from_slice(args);
+    let out = ipfn(dir, &all);
+    assert!(out.status.success(), "{}", stderr(&out));
+    pixels(&std::fs::read(dir.join("expected.png")).unwrap())
+}
+
+/// The tile at `query` equals `ipfn synth ARGS`, pixel for pixel.
+fn assert_tile_is(viewer: &Viewer, dir: &Path, query: &str, args: &[&str]) {
+    let (status, png) = fetch(viewer, "GET", &format!("/tile?{query}"));
+    assert_eq!(status, 200, "{query}: {}", String::from_utf8_lossy(&png));
+    let tile = pixels(&png);
+    let expected = synth(dir, args);
+    assert_eq!((tile.0, tile.1), (expected.0, expected.1), "{query}: size");
+    assert_same(
+        &tile,
+        &expected,
+        &format!("{query} against ipfn synth {args:?}"),
+    );
+}
+
+/// Two decoded images are the same, pixel for pixel (without printing them).
+fn assert_same(a: &(u32, u32, Vec<u8>), b: &(u32, u32, Vec<u8>), what: &str) {
+    assert_eq!((a.0, a.1, a.2.len()), (b.0, b.1, b.2.len()), "{what}: size");
+    let differ = a.2.iter().zip(&b.2).filter(|(x, y)| x != y).count();
+    assert_eq!(differ, 0, "{what}: {differ} values differ");
+}
+
+#[test]
+fn tiles_hold_exactly_the_pixels_of_ipfn_synth() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let viewer = view(d, &[]); // the shipped honeycomb
+    let plain = "seed=3&zoom=1.5&noise=0.8&size=256";
+    for (x, y) in [(256, -512), (-256, 0)] {
+        let offset = format!("{x},{y}");
+        assert_tile_is(
+            &viewer,
+            d,
+            &format!("{plain}&x={x}&y={y}"),
+            &[
+                "--seed",
+                "3",
+                "--zoom",
+                "1.5",
+                "--noise-scale",
+                "0.8",
+                "--offset",
+                &offset,
+                "--size",
+                "256",
+            ],
+        );
+    }
+    // Tile mode: every tile is the one period that `synth --tile` paints.
+    assert_tile_is(
+        &viewer,
+        d,
+        "seed=5&tile=200x160&x=4096&y=-512",
+        &["--seed", "5", "--tile", "--width", "200", "--height", "160"],
+    );
+}
+
+#[test]
+fn tiles_of_map_sets_guided_and_3d_models_equal_synth() {
+    let dir = tiny_run_folder();
+    let d = dir.path();
+    let train = |args: &[&str]| {
+        let out = ipfn(
+            d,
+            &[
+                &[
+                    "train",
+                    "--config",
+                    "tiny.toml",
+                    "--iterations",
+                    "2",
+                    "-q",
+                    "--device",
+                    "flex",
+                ],
+                args,
+            ]
+            .concat(),
+        );
+        assert!(out.status.success(), "{}", stderr(&out));
+    };
+    assert!(
+        ipfn(d, &["draw", "material", "--size", "64", "-o", "mat"])
+            .status
+            .success()
+    );
+    train(&["--maps", "mat/albedo.png,mat/normal.png", "--out", "maps"]);
+    train(&["ex.png", "--solid", "--out", "solid"]);
+    std::fs::write(d.join("guided.toml"), format!("{TINY}\nguide = \"x\"\n")).unwrap();
+    let out = ipfn(
+        d,
+        &[
+            "train",
+            "ex.png",
+            "--config",
+            "guided.toml",
+            "--iterations",
+            "2",
+            "-q",
+            "--device",
+            "flex",
+            "--out",
+            "guided",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+
+    // A map set: the normal map (renormalised), as synth writes normal.png.
+    let viewer = view(d, &["maps/latest.ipfn"]);
+    let (_, png) = fetch(&viewer, "GET", "/tile?map=1&size=64&x=32&y=-64&seed=2");
+    let tile = pixels(&png);
+    let out = ipfn(
+        d,
+        &[
+            "synth",
+            "-q",
+            "--model",
+            "maps/latest.ipfn",
+            "--seed",
+            "2",
+            "--offset",
+            "32,-64",
+            "--size",
+            "64",
+            "--bits",
+            "8",
+            "--out",
+            "m.png",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let expected = pixels(&std::fs::read(d.join("m-normal.png")).unwrap());
+    assert_same(&tile, &expected, "the normal map's tile");
+    drop(viewer);
+
+    // A solid texture: planes across z and across y.
+    let viewer = view(d, &["solid/latest.ipfn"]);
+    assert_tile_is(
+        &viewer,
+        d,
+        "axis=z&depth=3&size=64",
+        &[
+            "--model",
+            "solid/latest.ipfn",
+            "--slice",
+            "z=3",
+            "--size",
+            "64x64x4",
+        ],
+    );
+    assert_tile_is(
+        &viewer,
+        d,
+        "axis=y&depth=5&size=32&seed=1",
+        &[
+            "--model",
+            "solid/latest.ipfn",
+            "--seed",
+            "1",
+            "--slice",
+            "y=5",
+            "--size",
+            "32x6x32",
+        ],
+    );
+    drop(viewer);
+
+    // A guided model: the guide's frame starts at the origin.
+    let viewer = view(d, &["guided/latest.ipfn"]);
+    assert_tile_is(
+        &viewer,
+        d,
+        "guide=-y&frame=64x64&size=64",
+        &[
+            "--model",
+            "guided/latest.ipfn",
+            "--guide",
+            "-y",
+            "--size",
+            "64",
+        ],
+    );
+    let (status, body) = fetch(&viewer, "GET", "/tile?guide=/etc/passwd");
+    assert_eq!(
+        status,
+        400,
+        "a guide image path is refused: {}",
+        String::from_utf8_lossy(&body)
+    );
+}
+
+#[test]
+fn bad_requests_get_400_with_a_message_and_the_server_lives_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let viewer = view(dir.path(), &[]);
+    let cases: &[(&str, &str, u16, &str)] = &[
+        ("GET", "/tile?zoom=0", 400, "zoom 0"),
+        ("GET", "/tile?zoom=nan", 400, "zoom"),
+        ("GET", "/tile?x=1000000000", 400, "within 1000000 pixels"),
+        ("GET", "/tile?seed=abc", 400, "seed 'abc'"),
+        ("GET", "/tile?seed=-1", 400, "seed"),
+        ("GET", "/tile?size=0", 400, "size 0"),
+        ("GET", "/tile?size=100000", 400, "size 100000"),
+        ("GET", "/tile?tile=0x0", 400, "tile"),
+        ("GET", "/tile?tile=100000x100000", 400, "tile"),
+        ("GET", "/tile?noise=1e300", 400, "noise"),
+        ("GET", "/tile?map=3", 400, "map 3"),
+        ("GET", "/tile?axis=y", 400, "slices"),
+        ("GET", "/tile?seed=1&seed=2", 400, "twice"),
+        ("GET", "/tile?what=1", 400, "unknown parameter"),
+        ("GET", "/tile?guide=x", 400, "not guided"),
+        ("GET", "/tile?%ff%fe=1", 400, "unknown parameter"),
+        ("POST", "/export?size=99999x1", 400, "size"),
+        ("GET", "/../../etc/passwd", 404, "no such page"),
+        ("GET", "/preview/../config.toml", 404, "no such"),
+        ("GET", "/preview/iter-1.png", 404, "no run folder"),
+        (
+            "GET",
+            "/exports/..%2f..%2fetc%2fpasswd",
+            404,
+            "no such export",
+        ),
+        ("GET", "/api/run", 404, "not a run folder"),
+        ("POST", "/", 405, "not allowed"),
+    ];
+    for (method, path, status, needle) in cases {
+        let (got, body) = fetch(&viewer, method, path);
+        let body = String::from_utf8_lossy(&body);
+        assert_eq!(got, *status, "{method} {path}: {body}");
+        assert!(
+            body.contains(needle),
+            "{method} {path}: {body:?} lacks {needle:?}"
+        );
+        assert_eq!(
+            body.trim().lines().count(),
+            1,
+            "{method} {path}: one line: {body:?}"
+        );
+    }
+    let long = format!("/tile?seed={}", "9".repeat(10_000));
+    assert_eq!(fetch(&viewer, "GET", &long).0, 400);
+    assert_eq!(fetch(&viewer, "GET", "/api/info").0, 200, "still serving");
+}
+
+#[test]
+fn a_run_is_followed_live_and_reported_at_its_end() {
+    let dir = tiny_run_folder();
+    let d = dir.path();
+    // A run that trains while the viewer watches it.
+    let mut train = Command::new(env!("CARGO_BIN_EXE_ipfn"))
+        .args([
+            "train",
+            "ex.png",
+            "--config",
+            "tiny.toml",
+            "--iterations",
+            "400",
+            "--device",
+            "flex",
+            "-q",
+            "--out",
+            "run",
+        ])
+        .current_dir(d)
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while !d.join("run/latest.ipfn").is_file() {
+        assert!(start.elapsed() < Duration::from_secs(120), "no checkpoint");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let viewer = view(d, &["run"]);
+    let run = |v: &Viewer| -> serde_json::Value {
+        serde_json::from_slice(&fetch(v, "GET", "/api/run").1).unwrap()
+    };
+    let info = |v: &Viewer| -> serde_json::Value {
+        serde_json::from_slice(&fetch(v, "GET", "/api/info").1).unwrap()
+    };
+    let first = (run(&viewer), info(&viewer)["model"]["version"].clone());
+    assert_eq!(first.0["state"], "running", "{}", first.0);
+    // The plane follows the newest checkpoint.
+    let mut versions = std::collections::HashSet::new();
+    while versions.len() < 3 && train.try_wait().unwrap().is_none() {
+        versions.insert(info(&viewer)["model"]["version"].to_string());
+        let (status, _) = fetch(&viewer, "GET", "/tile?size=32");
+        assert_eq!(status, 200);
+    }
+    assert!(
+        versions.len() >= 3,
+        "the model changed as the run checkpointed: {versions:?}"
+    );
+    assert!(train.wait().unwrap().success());
+    let last = run(&viewer);
+    assert_eq!(last["state"], "finished", "{last}");
+    assert_eq!(last["iteration"], 400);
+    let metrics = &last["metrics"];
+    for column in [
+        "iteration",
+        "wasserstein",
+        "penalty",
+        "k_rows",
+        "k_cols",
+        "sifid",
+    ] {
+        assert!(
+            metrics[column].as_array().is_some_and(|c| !c.is_empty()),
+            "{column}"
+        );
+    }
+    let previews = last["previews"].as_array().unwrap();
+    assert_eq!(previews.len(), 200, "a preview every 2 iterations");
+    let name = previews[0].as_str().unwrap();
+    let (status, png) = fetch(&viewer, "GET", &format!("/preview/{name}"));
+    assert_eq!(status, 200);
+    assert_eq!(
+        png,
+        std::fs::read(d.join("run/previews").join(name)).unwrap()
+    );
+    assert!(
+        last["config"]
+            .as_str()
+            .unwrap()
+            .contains("iterations = 400")
+    );
+
+    // report.html: the same data, embedded.
+    let report = std::fs::read_to_string(d.join("run/report.html")).unwrap();
+    assert!(report.contains("window.IPFN_REPORT = {"), "data embedded");
+    assert!(report.contains("\"state\":\"finished\""));
+    assert!(report.contains(name), "previews by name");
+    assert!(
+        !report.contains("src=\"http"),
+        "nothing fetched from elsewhere"
+    );
+
+    drop(viewer);
+    let out = ipfn(d, &["view", "nope"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("nope: no such file or folder"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
+fn export_writes_the_view_through_synth_and_shows_the_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir(d.join("exports")).unwrap();
+    let viewer = view(d, &["--export-dir", "exports"]);
+    let (status, body) = fetch(
+        &viewer,
+        "POST",
+        "/export?seed=4&zoom=2&x=-100&y=30&size=300x200",
+    );
+    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+    let answer: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    let command = answer["command"].as_str().unwrap();
+    assert_eq!(
+        command,
+        "ipfn synth --seed 4 --zoom 2 --noise-scale 1 --width 300 --height 200 --offset -100,30 --out exports/view-seed4-300x200-at-100_30.png"
+    );
+    let file = answer["file"].as_str().unwrap();
+    let written = std::fs::read(d.join("exports").join(file)).unwrap();
+    let (status, served) = fetch(&viewer, "GET", &format!("/exports/{file}"));
+    assert_eq!((status, &served), (200, &written));
+    // The command, run as shown, paints the same pixels.
+    let words: Vec<&str> = command
+        .split(' ')
+        .skip(1)
+        .map(|w| {
+            if w.starts_with("exports/") {
+                "again.png"
+            } else {
+                w
+            }
+        })
+        .collect();
+    let out = ipfn(d, &words);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_same(
+        &pixels(&written),
+        &pixels(&std::fs::read(d.join("again.png")).unwrap()),
+        "export",
+    );
+}
+
+#[test]
+fn ctrl_c_leaves_nothing_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir(d.join("exports")).unwrap();
+    let mut viewer = view(d, &["--export-dir", "exports"]);
+    // An export in progress when the server is stopped.
+    let url = format!("{}/export?size=4096x4096", viewer.url);
+    let pending =
+        std::thread::spawn(move || agent().post(&url).send_empty().map(|r| r.status().as_u16()));
+    let start = Instant::now();
+    while std::fs::read_dir(d.join("exports")).unwrap().count() == 0 {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "the export never started"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let pid = viewer.child.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &pid])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let status = viewer.child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "Ctrl-C's exit status");
+    assert!(pending.join().unwrap().is_err(), "the export was cut off");
+    let left: Vec<PathBuf> = std::fs::read_dir(d.join("exports"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+#[test]
+fn many_tile_requests_do_not_stall_the_page() {
+    let dir = tempfile::tempdir().unwrap();
+    let viewer = view(dir.path(), &[]);
+    let base = viewer.url.clone();
+    // 96 clients at once, 2 distinct 128-pixel tiles each: more than the 64 the queue holds.
+    let clients: Vec<_> = (0..96)
+        .map(|c| {
+            let base = base.clone();
+            std::thread::spawn(move || {
+                (0..2)
+                    .map(|t| {
+                        let url = format!("{base}/tile?size=128&x={}&y={}", 128 * c, 128 * t);
+                        agent()
+                            .get(&url)
+                            .call()
+                            .map(|r| r.status().as_u16())
+                            .unwrap()
+                    })
+                    .collect::<Vec<u16>>()
+            })
+        })
+        .collect();
+    // While tiles queue, the page and its info answer (the queue is seen non-empty).
+    let mut busy_seen = false;
+    for _ in 0..200 {
+        let (status, page) = fetch(&viewer, "GET", "/");
+        assert_eq!(status, 200);
+        assert!(String::from_utf8_lossy(&page).contains("ipfn view"));
+        let info: serde_json::Value =
+            serde_json::from_slice(&fetch(&viewer, "GET", "/api/info").1).unwrap();
+        if info["queued"].as_u64().unwrap() + info["rendering"].as_u64().unwrap() > 0 {
+            busy_seen = true;
+            break;
+        }
+    }
+    assert!(
+        busy_seen,
+        "the page was answered while tiles were being painted"
+    );
+    let statuses: Vec<u16> = clients
+        .into_iter()
+        .flat_map(|c| c.join().unwrap())
+        .collect();
+    assert_eq!(statuses.len(), 192);
+    assert!(
+        statuses.iter().all(|s| *s == 200 || *s == 503),
+        "{statuses:?}"
+    );
+    assert!(statuses.contains(&200));
+    assert!(
+        statuses.contains(&503),
+        "the queue is bounded: the oldest requests were told to retry"
+    );
+    let info: serde_json::Value =
+        serde_json::from_slice(&fetch(&viewer, "GET", "/api/info").1).unwrap();
+    assert!(info["cache_bytes"].as_u64().unwrap() <= 256 << 20);
+}
+
+/// Headless chromium: Debian's `chromium` and tests/browser's playwright-core (`npm ci`), as
+/// `.ci/run` installs them. Skipped (with a message) only outside CI when they are missing.
+fn browser_ready() -> bool {
+    let chromium =
+        Path::new(&std::env::var("CHROMIUM").unwrap_or("/usr/bin/chromium".into())).is_file();
+    let driver = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/browser/node_modules/playwright-core")
+        .is_dir();
+    if chromium && driver {
+        return true;
+    }
+    assert!(
+        std::env::var("CI").is_err(),
+        "CI must run the browser tests: install chromium and run `npm ci --prefix tests/browser`"
+    );
+    eprintln!("skipped: needs /usr/bin/chromium and `npm ci --prefix tests/browser`");
+    false
+}
+
+fn browse(mode: &str, url: &str, out: &Path, env: &[(&str, String)]) -> serde_json::Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/browser/view.mjs");
+    let status = Command::new("node")
+        .arg(&script)
+        .args([mode, url, out.to_str().unwrap()])
+        .envs(env.iter().map(|(k, v)| (k, v)))
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let record: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("record.json")).unwrap()).unwrap();
+    assert!(record.get("error").is_none(), "{record:#}");
+    record
+}
+
+/// `IPFN_SCREENSHOTS=DIR`: the browser tests also save the README's screenshots there.
+fn screenshot(name: &str) -> Vec<(&'static str, String)> {
+    std::env::var("IPFN_SCREENSHOTS")
+        .map(|dir| vec![("SCREENSHOT", format!("{dir}/{name}"))])
+        .unwrap_or_default()
+}
+
+#[test]
+fn chromium_shows_the_plane_as_synth_paints_it_and_pans() {
+    if !browser_ready() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let viewer = view(d, &[]);
+    let record = browse(
+        "plane",
+        &format!("{}/#seed=3&zoom=1.5&noise=0.8&cx=300&cy=-200", viewer.url),
+        d,
+        &screenshot("view-plane.png"),
+    );
+    // Every tile the page fetched is `ipfn synth` at its offset.
+    let tiles = record["tiles"].as_array().unwrap();
+    assert!(tiles.len() >= 12, "{}", tiles.len());
+    for tile in tiles {
+        let url = tile["url"].as_str().unwrap();
+        let q: std::collections::HashMap<String, String> =
+            form_urlencoded::parse(url.split_once('?').unwrap().1.as_bytes())
+                .into_owned()
+                .collect();
+        let offset = format!("{},{}", q["x"], q["y"]);
+        let expected = synth(
+            d,
+            &[
+                "--seed",
+                "3",
+                "--zoom",
+                "1.5",
+                "--noise-scale",
+                "0.8",
+                "--offset",
+                &offset,
+                "--size",
+                "256",
+            ],
+        );
+        let shown = pixels(&std::fs::read(tile["file"].as_str().unwrap()).unwrap());
+        assert_same(&shown, &expected, &format!("tile at {offset}"));
+    }
+    // Placed where the view says: the view's centre (cx, cy) is the plane's centre.
+    let place = |view: &serde_json::Value, cx: i64, cy: i64| {
+        let [w, h] = [
+            view["plane"][0].as_i64().unwrap(),
+            view["plane"][1].as_i64().unwrap(),
+        ];
+        for t in view["tiles"].as_array().unwrap() {
+            let (x, y) = (t["x"].as_i64().unwrap(), t["y"].as_i64().unwrap());
+            assert_eq!(t["left"].as_i64().unwrap(), x - (cx - w / 2), "{t}");
+            assert_eq!(t["top"].as_i64().unwrap(), y - (cy - h / 2), "{t}");
+        }
+    };
+    place(&record["before"], 300, -200);
+    // Dragged 100 px left and 50 up: the plane moved with the pointer, and the URL says so.
+    place(&record["after"], 400, -150);
+    let hash = record["after"]["hash"].as_str().unwrap();
+    assert!(
+        hash.contains("cx=400") && hash.contains("cy=-150"),
+        "{hash}"
+    );
+    assert_eq!(
+        record["reopened"]["tiles"], record["after"]["tiles"],
+        "the URL reopens the view"
+    );
+}
+
+#[test]
+fn chromium_shows_a_run_and_its_report() {
+    if !browser_ready() {
+        return;
+    }
+    let dir = tiny_run_folder();
+    let d = dir.path();
+    let out = ipfn(
+        d,
+        &[
+            "train",
+            "ex.png",
+            "--config",
+            "tiny.toml",
+            "--iterations",
+            "12",
+            "--device",
+            "flex",
+            "-q",
+            "--out",
+            "run",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let viewer = view(d, &["run"]);
+    let mut env = screenshot("view-run.png");
+    env.push((
+        "REPORT",
+        format!("file://{}", d.join("run/report.html").display()),
+    ));
+    let record = browse("run", &format!("{}/", viewer.url), d, &env);
+    for key in ["run", "report"] {
+        let series: Vec<&str> = record[key]["series"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s.as_str().unwrap())
+            .collect();
+        for expected in ["wasserstein", "penalty", "k_rows", "k_cols", "sifid"] {
+            assert!(series.contains(&expected), "{key}: {series:?}");
+        }
+        assert_eq!(record[key]["state"], "finished", "{key}");
+    }
+    assert_eq!(record["run"]["previews"], 6);
+    assert_eq!(record["report"]["previews"], 6);
+}
