@@ -99,6 +99,10 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
         trainer.config.crop,
         crate::bench::device_name(choice)
     ));
+    say(format!(
+        "watch it in a browser: ipfn view {}",
+        trainer.run_dir().display()
+    ));
 
     crate::stop::install(crate::stop::OnSignal::FinishStep);
     let stop = crate::stop::flag();
@@ -154,10 +158,11 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
         bar.finish_and_clear();
     }
     say(format!(
-        "trained {} iterations in {:.1} s; model: {} (ipfn synth uses it by default here)",
+        "trained {} iterations in {:.1} s; model: {} (ipfn synth uses it by default here); report: {}",
         trainer.iteration - first,
         start.elapsed().as_secs_f64(),
-        latest.display()
+        latest.display(),
+        trainer.run_dir().join("report.html").display()
     ));
     Ok(())
 }

@@ -240,7 +240,9 @@
     });
     const figure = document.createElement("figure");
     const caption = document.createElement("figcaption");
-    const last = lines.map(({ n }, i) => `${n} ${fmt(points[i][points[i].length - 1]?.[1] ?? NaN)}`).join(", ");
+    const latest = (i) => fmt(points[i][points[i].length - 1]?.[1] ?? NaN);
+    const last = lines.length === 1 ? latest(0)
+      : lines.map(({ n }, i) => `${n.replace("k_", "")} ${latest(i)} (${["blue", "red", "green"][i % 3]})`).join(", ");
     caption.textContent = `${title}: ${last}`;
     figure.append(caption, svg);
     return figure;

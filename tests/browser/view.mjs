@@ -17,7 +17,7 @@ const browser = await chromium.launch({
   args: ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
     "--disable-background-networking", "--disable-component-update", "--disable-sync"],
 });
-const page = await browser.newPage({ viewport: { width: 1000, height: 640 } });
+const page = await browser.newPage({ viewport: { width: 1200, height: 960 } });
 const record = { console: [] };
 page.on("console", (m) => record.console.push(m.type() + ": " + m.text()));
 page.on("pageerror", (e) => record.console.push("pageerror: " + e.message));
@@ -66,6 +66,12 @@ if (mode === "plane") {
   await page.goto("about:blank");
   await page.goto(url.split("#")[0] + record.after.hash);
   record.reopened = await placed();
+  // The wheel zooms about the pointer (here the plane's centre): one notch is x1.25.
+  const plane = await page.locator("#plane").boundingBox();
+  await page.mouse.move(plane.x + plane.width / 2, plane.y + plane.height / 2);
+  await page.mouse.wheel(0, -100);
+  await page.waitForFunction(() => location.hash.includes("zoom=1.875"), null, { timeout: 10000 });
+  record.zoomed = await placed();
 } else if (mode === "run") {
   await page.goto(url);
   await page.waitForFunction(() => document.querySelectorAll("#plots polyline").length >= 3

@@ -6,6 +6,8 @@ use std::process::{Command, Output};
 
 use ipfn::device::DeviceChoice;
 
+pub mod view;
+
 /// Runs one test body on every device, like candle's `test_device!`: the fused CPU evaluator,
 /// burn-flex and burn-wgpu. Backends cannot drift apart unnoticed.
 ///
