@@ -154,6 +154,25 @@ fn tiles_of_map_sets_guided_and_3d_models_equal_synth() {
             "32x6x32",
         ],
     );
+    let x_plane = "axis=x&depth=2&size=32";
+    let args = [
+        "--model",
+        "solid/latest.ipfn",
+        "--slice",
+        "x=2",
+        "--size",
+        "3x32x32",
+    ];
+    assert_tile_is(&viewer, d, x_plane, &args);
+    // Its export: the same plane, through synth, with the command that paints it.
+    let (status, body) = fetch(&viewer, "POST", "/export?axis=x&depth=2&size=32x32");
+    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+    let answer: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    let command = answer["command"].as_str().unwrap();
+    assert!(command.contains("--size 3x32x32 --slice x=2"), "{command}");
+    let (_, tile) = fetch(&viewer, "GET", &format!("/tile?{x_plane}"));
+    let exported = std::fs::read(d.join(answer["file"].as_str().unwrap())).unwrap();
+    assert_same(&pixels(&tile), &pixels(&exported), "the 3D export");
     drop(viewer);
 
     // A guided model: the guide's frame starts at the origin.
@@ -168,6 +187,23 @@ fn tiles_of_map_sets_guided_and_3d_models_equal_synth() {
             "--guide",
             "-y",
             "--size",
+            "64",
+        ],
+    );
+    // In tile mode the guide's frame is the tile, as `synth --tile --guide` has it.
+    assert_tile_is(
+        &viewer,
+        d,
+        "guide=-y&frame=512x512&tile=128x64",
+        &[
+            "--model",
+            "guided/latest.ipfn",
+            "--guide",
+            "-y",
+            "--tile",
+            "--width",
+            "128",
+            "--height",
             "64",
         ],
     );
@@ -188,6 +224,26 @@ fn bad_requests_get_400_with_a_message_and_the_server_lives_on() {
         ("GET", "/tile?zoom=0", 400, "zoom 0"),
         ("GET", "/tile?zoom=nan", 400, "zoom"),
         ("GET", "/tile?x=1000000000", 400, "within 1000000 pixels"),
+        (
+            "GET",
+            "/tile?x=-9223372036854775808",
+            400,
+            "within 1000000 pixels",
+        ),
+        (
+            "GET",
+            "/tile?y=99999999999999999999",
+            400,
+            "not a valid value",
+        ),
+        ("GET", "/tile?depth=-1", 400, "depth -1"),
+        ("GET", "/tile?tile=32x32", 400, "64 to 2048"),
+        (
+            "POST",
+            "/export?size=5000x5000",
+            400,
+            "at most 16777216 pixels",
+        ),
         ("GET", "/tile?seed=abc", 400, "seed 'abc'"),
         ("GET", "/tile?seed=-1", 400, "seed"),
         ("GET", "/tile?size=0", 400, "size 0"),
@@ -348,11 +404,14 @@ fn export_writes_the_view_through_synth_and_shows_the_command() {
     assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
     let answer: serde_json::Value = serde_json::from_slice(&body).unwrap();
     let command = answer["command"].as_str().unwrap();
+    let file = answer["file"].as_str().unwrap();
+    assert!(file.starts_with("view-seed4-300x200-at-100_30-") && file.ends_with(".png"));
     assert_eq!(
         command,
-        "ipfn synth --seed 4 --zoom 2 --noise-scale 1 --width 300 --height 200 --offset -100,30 --out exports/view-seed4-300x200-at-100_30.png"
+        format!(
+            "ipfn synth --seed 4 --zoom 2 --noise-scale 1 --width 300 --height 200 --offset -100,30 --out exports/{file}"
+        )
     );
-    let file = answer["file"].as_str().unwrap();
     let written = std::fs::read(d.join("exports").join(file)).unwrap();
     let (status, served) = fetch(&viewer, "GET", &format!("/exports/{file}"));
     assert_eq!((status, &served), (200, &written));
@@ -375,6 +434,72 @@ fn export_writes_the_view_through_synth_and_shows_the_command() {
         &pixels(&std::fs::read(d.join("again.png")).unwrap()),
         "export",
     );
+    // Another view never takes its name; a file the viewer did not write is never replaced.
+    let (_, other) = fetch(
+        &viewer,
+        "POST",
+        "/export?seed=4&zoom=2.5&x=-100&y=30&size=300x200",
+    );
+    let other: serde_json::Value = serde_json::from_slice(&other).unwrap();
+    assert_ne!(other["file"], answer["file"]);
+    std::fs::write(
+        d.join("exports").join(other["file"].as_str().unwrap()),
+        b"mine",
+    )
+    .unwrap();
+    let (status, body) = fetch(
+        &viewer,
+        "POST",
+        "/export?seed=4&zoom=2.5&x=-100&y=30&size=300x200",
+    );
+    assert_eq!(
+        status,
+        200,
+        "rewriting its own export is fine: {}",
+        String::from_utf8_lossy(&body)
+    );
+    let (status, body) = fetch(&viewer, "POST", "/export?seed=9&size=64x64");
+    assert_eq!(status, 200);
+    let name: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    drop(viewer);
+    let viewer = view(d, &["--export-dir", "exports"]); // a new server: none of these are its own
+    let (status, body) = fetch(&viewer, "POST", "/export?seed=9&size=64x64");
+    assert_eq!(status, 400);
+    let body = String::from_utf8_lossy(&body);
+    assert!(
+        body.contains(name["file"].as_str().unwrap())
+            && body.contains("not written by this viewer"),
+        "{body}"
+    );
+}
+
+#[test]
+fn only_its_own_address_and_the_page_reach_the_server() {
+    use std::io::{Read, Write};
+    let dir = tempfile::tempdir().unwrap();
+    let viewer = view(dir.path(), &[]);
+    let addr = viewer.url.trim_start_matches("http://").to_string();
+    let status_of = |request: String| {
+        let mut stream = std::net::TcpStream::connect(&addr).unwrap();
+        stream.write_all(request.as_bytes()).unwrap();
+        let mut answer = String::new();
+        let _ = stream.read_to_string(&mut answer);
+        answer.lines().next().unwrap_or("").to_string()
+    };
+    // A page elsewhere that rebinds its DNS name to 127.0.0.1 sends its own Host.
+    let rebound = status_of(
+        "GET /api/info HTTP/1.1\r\nHost: evil.example\r\nConnection: close\r\n\r\n".into(),
+    );
+    assert!(rebound.contains("403"), "{rebound}");
+    let own = status_of(format!(
+        "GET /api/info HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+    ));
+    assert!(own.contains("200"), "{own}");
+    // A cross-site form can POST, but cannot add the header the page sends.
+    let form = status_of(format!(
+        "POST /export HTTP/1.1\r\nHost: {addr}\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
+    ));
+    assert!(form.contains("403"), "{form}");
 }
 
 #[test]
@@ -385,8 +510,10 @@ fn ctrl_c_leaves_nothing_behind() {
     let mut viewer = view(d, &["--export-dir", "exports"]);
     // An export in progress when the server is stopped.
     let url = format!("{}/export?size=4096x4096", viewer.url);
-    let pending =
-        std::thread::spawn(move || agent().post(&url).send_empty().map(|r| r.status().as_u16()));
+    let pending = std::thread::spawn(move || {
+        let post = agent().post(&url).header("X-Ipfn", "1");
+        post.send_empty().map(|r| r.status().as_u16())
+    });
     let start = Instant::now();
     while std::fs::read_dir(d.join("exports")).unwrap().count() == 0 {
         assert!(

@@ -94,26 +94,8 @@ pub(super) fn view(args: ViewArgs) -> Result<()> {
         export_dir: args.export_dir.clone(),
         ..ServerConfig::default()
     };
-    // Exports run `ipfn synth` itself, so the page's command and its file cannot differ.
-    let exporter = Box::new(|synth_args: &[String]| {
-        let argv = ["ipfn", "synth"]
-            .into_iter()
-            .map(String::from)
-            .chain(synth_args.iter().cloned());
-        let cli = super::Cli::try_parse_from(argv)
-            .map_err(|e| input_error!("export: {}", e.to_string().lines().next().unwrap_or("")))?;
-        match cli.command {
-            super::Command::Synth(a) => super::synth::synth(*a),
-            _ => unreachable!("parsed as synth"),
-        }
-    });
-    let server = ViewServer::bind(
-        SocketAddr::new(args.host, args.port),
-        source,
-        run.clone(),
-        config,
-        exporter,
-    )?;
+    let addr = SocketAddr::new(args.host, args.port);
+    let server = ViewServer::bind(addr, source, run.clone(), config, Box::new(export))?;
     if !args.host.is_loopback() {
         eprintln!(
             "warning: listening on {}: anyone who can reach this address can use the viewer (and this machine's CPU)",
@@ -126,18 +108,32 @@ pub(super) fn view(args: ViewArgs) -> Result<()> {
         (None, None) => "the shipped honeycomb model".to_string(),
     };
     eprintln!("ipfn view: {what}");
-    let addr = server.addr();
-    let host = if addr.ip().is_unspecified() {
-        "127.0.0.1".to_string()
-    } else {
-        addr.ip().to_string()
-    };
-    let host = if addr.is_ipv6() {
-        format!("[{host}]")
-    } else {
-        host
-    };
-    println!("http://{host}:{}/", addr.port());
+    println!("{}", url(server.addr()));
     eprintln!("open that address in a browser; Ctrl-C stops the server");
     server.serve(crate::stop::flag())
+}
+
+/// Exports run `ipfn synth` itself, so the page's command and its file cannot differ.
+fn export(synth_args: &[String]) -> Result<()> {
+    let argv = ["ipfn", "synth"]
+        .into_iter()
+        .map(String::from)
+        .chain(synth_args.iter().cloned());
+    let cli = super::Cli::try_parse_from(argv)
+        .map_err(|e| input_error!("export: {}", e.to_string().lines().next().unwrap_or("")))?;
+    match cli.command {
+        super::Command::Synth(a) => super::synth::synth(*a),
+        _ => unreachable!("parsed as synth"),
+    }
+}
+
+/// The address to open: a wildcard address is opened on loopback.
+fn url(addr: SocketAddr) -> String {
+    let host = match addr.ip() {
+        ip if ip.is_unspecified() && addr.is_ipv6() => "[::1]".to_string(),
+        ip if ip.is_unspecified() => "127.0.0.1".to_string(),
+        ip if addr.is_ipv6() => format!("[{ip}]"),
+        ip => ip.to_string(),
+    };
+    format!("http://{host}:{}/", addr.port())
 }

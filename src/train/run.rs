@@ -160,12 +160,19 @@ impl Trainer {
                 self.save_preview()?;
             }
             if stopped {
-                crate::view::run::write_report(&self.run_dir, "stopped")?;
+                self.report("stopped");
                 return Ok(RunEnd::Stopped);
             }
         }
-        crate::view::run::write_report(&self.run_dir, "finished")?;
+        self.report("finished");
         Ok(RunEnd::Finished)
+    }
+
+    /// Writes `report.html`; a failure (a full disk) is a warning: the run itself is saved.
+    fn report(&self, state: &str) {
+        if let Err(e) = crate::view::run::write_report(&self.run_dir, state) {
+            eprintln!("warning: report.html not written: {e}");
+        }
     }
 
     /// A time budget: after [`PLAN_AFTER`] iterations, `iterations` becomes what fits in the

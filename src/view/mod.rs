@@ -36,8 +36,16 @@ pub const MAX_POSITION: i64 = 1_000_000;
 pub const TILE_SIDES: std::ops::RangeInclusive<usize> = 16..=1024;
 /// Zoom and noise scale lie in [1/MAX_SCALE, MAX_SCALE].
 pub const MAX_SCALE: f64 = 64.0;
-/// A tile period, a guide frame or an export is at most this many pixels on a side.
+/// A guide frame or an export is at most this many pixels on a side.
 pub const MAX_FRAME: usize = 16384;
+/// Tile mode's period: sides from MIN_PERIOD (so a screen holds a few hundred tiles at most) to
+/// MAX_PERIOD pixels (one render).
+pub const MIN_PERIOD: usize = 64;
+pub const MAX_PERIOD: usize = 2048;
+/// An export paints at most this many pixels (a 4096x4096 image), a 3D model's plane at most
+/// MAX_EXPORT_PLANE (one render, in memory).
+pub const MAX_EXPORT_PIXELS: usize = 1 << 24;
+pub const MAX_EXPORT_PLANE: usize = 1 << 22;
 
 /// What the page shows: every `ipfn synth` option that a view can set, range-checked.
 #[derive(Debug, Clone, PartialEq)]
@@ -60,6 +68,9 @@ pub struct View {
 
 /// A request's query string as name-value pairs (percent-decoded). Repeated names are refused.
 pub fn parse_query(query: &str) -> Result<HashMap<String, String>> {
+    if query.len() > 2048 {
+        return Err(input_error!("query too long"));
+    }
     let mut pairs = HashMap::new();
     for (name, value) in form_urlencoded::parse(query.as_bytes()) {
         if pairs.insert(name.to_string(), value.to_string()).is_some() {
@@ -114,7 +125,7 @@ pub fn frame(q: &HashMap<String, String>, name: &str) -> Result<Option<[usize; 2
 /// A position on one axis, within [`MAX_POSITION`].
 pub fn position(q: &HashMap<String, String>, name: &str) -> Result<i64> {
     let v: i64 = param(q, name)?.unwrap_or(0);
-    if v.abs() > MAX_POSITION {
+    if !(-MAX_POSITION..=MAX_POSITION).contains(&v) {
         return Err(input_error!(
             "{name} {v}: the plane is served within {MAX_POSITION} pixels of the origin"
         ));
@@ -122,63 +133,93 @@ pub fn position(q: &HashMap<String, String>, name: &str) -> Result<i64> {
     Ok(v)
 }
 
+/// A guided model's line and frame (`x` over 1024x1024 by default; in tile mode the frame is
+/// the tile, as `synth --tile --guide` has it). Lines only: a request never names a file.
+fn guide(
+    q: &HashMap<String, String>,
+    config: &GeneratorConfig,
+    period: Option<[usize; 2]>,
+) -> Result<Option<(String, [usize; 2])>> {
+    let guided = config.guidance > 0 && config.dims == 2;
+    let line = match (q.get("guide"), guided) {
+        (Some(_), false) => return Err(input_error!("guide: this model is not guided")),
+        (None, false) => return Ok(None),
+        (Some(g), true) if g.len() > 64 => return Err(input_error!("guide: value too long")),
+        (Some(g), true) => g
+            .parse::<Guide>()
+            .map_err(|_| input_error!("guide '{g}': expected x, y, -x, -y or a,b,c"))?,
+        (None, true) => Guide::Line {
+            a: 1.0,
+            b: 0.0,
+            c: 0.0,
+        },
+    };
+    let frame = match period {
+        Some(period) => period,
+        None => frame(q, "frame")?.unwrap_or([1024, 1024]),
+    };
+    Ok(line.to_config().map(|text| (text, frame)))
+}
+
+/// A density-controlled volume model's density (0.3 by default), a mean |sdf| in [0, 4].
+fn density(q: &HashMap<String, String>, config: &GeneratorConfig) -> Result<Option<f32>> {
+    match (
+        param::<f32>(q, "density")?,
+        config.guidance > 0 && config.dims == 3,
+    ) {
+        (Some(d), true) if d.is_finite() && (0.0..=4.0).contains(&d) => Ok(Some(d)),
+        (Some(d), true) => Err(input_error!("density {d}: must be in [0, 4]")),
+        (None, true) => Ok(Some(0.3)),
+        (Some(_), false) => Err(input_error!("density: this model has no density control")),
+        (None, false) => Ok(None),
+    }
+}
+
+/// A 3D model's plane: the axis across it and its index (from 0, as `synth --slice`).
+fn slice(q: &HashMap<String, String>, config: &GeneratorConfig) -> Result<(char, i64)> {
+    let axis = match (q.get("axis").map(String::as_str), config.dims) {
+        (None, _) | (Some("z"), 3) => 'z',
+        (Some("x"), 3) => 'x',
+        (Some("y"), 3) => 'y',
+        (Some(_), 3) => return Err(input_error!("axis: expected x, y or z")),
+        (Some(_), _) => return Err(input_error!("axis: only 3D models have slices")),
+    };
+    let depth = position(q, "depth")?;
+    if depth < 0 || (depth > 0 && config.dims != 3) {
+        return Err(input_error!(
+            "depth {depth}: a slice's index is 0 or more, for 3D models"
+        ));
+    }
+    Ok((axis, depth))
+}
+
 impl View {
     /// The view in a query, checked against the model: options a model cannot take are refused.
     pub fn from_query(q: &HashMap<String, String>, model: &ViewModel) -> Result<Self> {
         let config = &model.config;
-        let guide = match (q.get("guide"), config.guidance > 0 && config.dims == 2) {
-            (Some(g), true) => {
-                // Lines only: a request never names a file.
-                g.parse::<Guide>()
-                    .map_err(|_| input_error!("guide '{g}': expected x, y, -x, -y or a,b,c"))?;
-                let frame = frame(q, "frame")?.unwrap_or([1024, 1024]);
-                Some((g.trim().to_string(), frame))
-            }
-            (None, true) => Some(("x".to_string(), frame(q, "frame")?.unwrap_or([1024, 1024]))),
-            (Some(_), false) => return Err(input_error!("guide: this model is not guided")),
-            (None, false) => None,
-        };
-        let density = match (
-            param::<f32>(q, "density")?,
-            config.guidance > 0 && config.dims == 3,
-        ) {
-            (Some(d), true) if d.is_finite() && (-4.0..=4.0).contains(&d) => Some(d),
-            (Some(d), true) => return Err(input_error!("density {d}: must be in [-4, 4]")),
-            (None, true) => Some(0.3),
-            (Some(_), false) => {
-                return Err(input_error!("density: this model has no density control"));
-            }
-            (None, false) => None,
-        };
-        let maps = model.maps.as_ref().map_or(1, |m| m.ranges().len());
-        let map: usize = param(q, "map")?.unwrap_or(0);
-        if map >= maps {
-            return Err(input_error!("map {map}: the model has {maps} map(s)"));
-        }
-        let axis = q.get("axis").map_or("z", String::as_str);
-        let axis = match (axis, config.dims) {
-            ("x", 3) => 'x',
-            ("y", 3) => 'y',
-            ("z", _) => 'z',
-            (a, 3) => return Err(input_error!("axis '{a}': expected x, y or z")),
-            _ => return Err(input_error!("axis: only 3D models have slices")),
-        };
         let period = frame(q, "tile")?;
         if period.is_some() && config.dims != 2 {
             return Err(input_error!("tile: tile mode is for 2D models"));
         }
-        if period.is_some_and(|[h, w]| h.max(w) > 2048 || h.min(w) < 8) {
-            return Err(input_error!("tile: a period's sides are 8 to 2048 pixels"));
+        if period.is_some_and(|[h, w]| h.max(w) > MAX_PERIOD || h.min(w) < MIN_PERIOD) {
+            return Err(input_error!(
+                "tile: a period's sides are {MIN_PERIOD} to {MAX_PERIOD} pixels"
+            ));
+        }
+        let maps = model.maps.as_ref().map_or(1, |m| m.ranges().len());
+        let map: usize = param(q, "map")?.unwrap_or(0);
+        if map >= maps {
+            return Err(input_error!("map {map}: the model has {maps} map(s)"));
         }
         Ok(Self {
             seed: param(q, "seed")?.unwrap_or(0),
             zoom: scale(q, "zoom")?,
             noise_scale: scale(q, "noise")?,
             period,
-            guide,
-            density,
+            guide: guide(q, config, period)?,
+            density: density(q, config)?,
             map,
-            slice: (axis, position(q, "depth")?),
+            slice: slice(q, config)?,
         })
     }
 
@@ -197,7 +238,7 @@ impl View {
             args.push(a.to_string());
             args.push(b);
         };
-        if let Some(file) = &model.file {
+        if let Some(file) = &model.command_file {
             push(&mut args, "--model", file.display().to_string());
         }
         push(&mut args, "--seed", self.seed.to_string());
@@ -206,7 +247,7 @@ impl View {
         let [rows, cols] = self.period.unwrap_or(size);
         if model.config.dims == 3 {
             let (axis, index) = self.slice;
-            let index = index.max(0) as usize;
+            let index = index as usize; // from_query: 0 or more
             // The volume holds the plane: the slice's axis reaches its index.
             let (w, h, d) = match axis {
                 'z' => (cols, rows, index + 1),
@@ -229,6 +270,16 @@ impl View {
         }
         if let Some(d) = self.density {
             push(&mut args, "--density", d.to_string());
+        }
+        if model.maps.is_some() {
+            push(&mut args, "--bits", "8".into()); // as the tiles show them
+        }
+        if model.device != DeviceChoice::Cpu {
+            push(
+                &mut args,
+                "--device",
+                format!("{:?}", model.device).to_lowercase(),
+            );
         }
         push(&mut args, "--out", out.display().to_string());
         args
@@ -260,6 +311,9 @@ pub struct ViewModel {
     pub maps: Option<MapSet>,
     /// The file it was read from (`None`: the shipped honeycomb).
     pub file: Option<PathBuf>,
+    /// The file that commands name: for a run's `latest.ipfn`, the run's unchanging
+    /// `checkpoints/iter-N.ipfn` of the same iteration (same generator), when it is there.
+    pub command_file: Option<PathBuf>,
     /// Changes whenever the file does (its modification time and length).
     pub version: String,
     pub description: String,
@@ -303,6 +357,7 @@ impl ViewModel {
             config: chosen.config,
             weights: chosen.weights,
             maps: chosen.maps,
+            command_file: file.map(checkpoint_of),
             file: file.map(Path::to_path_buf),
             version,
             description: chosen.description,
@@ -397,6 +452,20 @@ impl ViewModel {
     }
 }
 
+/// For a run's `latest.ipfn`, its `checkpoints/iter-N.ipfn` (the generator of the same iteration,
+/// which the run never rewrites); else the file itself.
+fn checkpoint_of(file: &Path) -> PathBuf {
+    let iteration = (file.file_name() == Some("latest.ipfn".as_ref()))
+        .then(|| crate::checkpoint::Checkpoint::load(file).ok())
+        .flatten()
+        .and_then(|c| c.metadata.get("iteration")?.parse::<u64>().ok());
+    let dir = file.parent().unwrap_or(Path::new("."));
+    iteration
+        .map(|it| dir.join("checkpoints").join(format!("iter-{it:06}.ipfn")))
+        .filter(|p| p.is_file())
+        .unwrap_or_else(|| file.to_path_buf())
+}
+
 /// `[rows, cols, channels]` values in [-1, 1] as an 8-bit PNG in memory, with the levels of
 /// [`crate::io::write_png`].
 pub fn encode_png(width: usize, height: usize, channels: usize, values: &[f32]) -> Result<Vec<u8>> {
@@ -453,12 +522,13 @@ impl ModelSource {
             },
             None => "shipped".to_string(),
         };
-        let mut current = self.current.lock().expect("model lock");
-        if let Some(model) = current.as_ref().filter(|m| m.version == version) {
+        let current = || self.current.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(model) = current().as_ref().filter(|m| m.version == version) {
             return Ok(Some(model.clone()));
         }
+        // Loaded outside the lock: a slow load does not hold up requests that need no model.
         let model = Arc::new(ViewModel::load(self.file.as_deref(), self.device)?);
-        *current = Some(model.clone());
+        *current() = Some(model.clone());
         Ok(Some(model))
     }
 }

@@ -6,10 +6,15 @@
   const REPORT = window.IPFN_REPORT;
   const TILE = 256;
   const MAX_POSITION = 1000000;
-  const state = { seed: 0, zoom: 1, noise: 1, tile: false, period: "256x256", guide: "x",
+  const MAX_IN_FLIGHT = 4; // tiles fetched at once: the browser keeps connections for the rest
+  const state = { seed: "0", zoom: 1, noise: 1, tile: false, period: "256x256", guide: "x",
     frame: "1024x1024", density: 0.3, map: 0, axis: "z", depth: 0, cx: 0, cy: 0 };
   let info = null;
   const shown = new Map(); // tile key -> img
+  const waiting = []; // imgs whose tile is not fetched yet; the newest is fetched first
+  const blobs = new Map(); // tile URL -> object URL of its PNG (the most recent 512)
+  const pending = new Set(); // tile URLs being fetched
+  let inFlight = 0;
 
   function readHash() {
     const p = new URLSearchParams(location.hash.slice(1));
@@ -18,7 +23,7 @@
       const v = p.get(k);
       if (typeof state[k] === "number") { if (v !== "" && isFinite(Number(v))) state[k] = Number(v); }
       else if (typeof state[k] === "boolean") state[k] = v === "1";
-      else state[k] = v;
+      else if (k !== "seed" || /^\d{1,20}$/.test(v)) state[k] = v;
     }
   }
   function writeHash() {
@@ -30,7 +35,7 @@
   // The view's query: what /tile and /export take.
   function viewQuery() {
     const p = new URLSearchParams();
-    p.set("seed", String(state.seed));
+    p.set("seed", state.seed);
     p.set("zoom", String(state.zoom));
     p.set("noise", String(state.noise));
     const m = info.model;
@@ -55,7 +60,7 @@
     let tw = TILE, th = TILE;
     const tiled = state.tile && info.model.dims === 2;
     if (tiled) [tw, th] = state.period.split("x").map(Number);
-    if (!(tw >= 8 && th >= 8)) { $("message").textContent = "tile: give the period as WxH, e.g. 256x256"; return; }
+    if (!(tw >= 64 && th >= 64)) { $("message").textContent = "tile: give the period as WxH, 64 to 2048, e.g. 256x256"; return; }
     $("tiles").classList.toggle("outlined", tiled);
     const base = viewQuery();
     base.set("v", info.model.version);
@@ -73,32 +78,68 @@
         if (!img) {
           img = document.createElement("img");
           img.dataset.x = String(x); img.dataset.y = String(y);
+          img.dataset.url = url;
           img.dataset.tries = "0";
-          img.onerror = () => retry(img, url);
-          img.src = url;
           $("tiles").appendChild(img);
           shown.set(key, img);
+          if (blobs.has(url)) img.src = blobs.get(url); else waiting.push(img);
         }
         img.style.left = (x - left) + "px";
         img.style.top = (y - top) + "px";
       }
     }
-    for (const [key, img] of shown) if (!want.has(key)) { img.remove(); shown.delete(key); }
+    for (const [key, img] of shown) if (!want.has(key)) { drop(img); shown.delete(key); }
+    pump();
   }
 
-  // A tile the server was too busy for (503) is asked again, a little later.
-  function retry(img, url) {
-    const tries = Number(img.dataset.tries) + 1;
-    img.dataset.tries = String(tries);
-    if (tries > 8 || !img.isConnected) return;
-    fetch(url).then((r) => (r.ok ? null : r.text())).then((msg) => {
-      if (msg && !msg.startsWith("busy")) { $("message").textContent = msg; return; }
-      setTimeout(() => { if (img.isConnected) img.src = url; }, 250 * tries);
-    }).catch(() => {});
+  // Fetches waiting tiles, newest first, at most MAX_IN_FLIGHT at once.
+  function pump() {
+    while (inFlight < MAX_IN_FLIGHT && waiting.length) {
+      const img = waiting.pop();
+      if (img.isConnected && !img.src) fetchTile(img);
+    }
+  }
+
+  function fetchTile(img) {
+    const url = img.dataset.url;
+    if (blobs.has(url)) { img.src = blobs.get(url); return; }
+    if (pending.has(url)) return; // tile mode: one fetch fills every copy of the tile
+    pending.add(url);
+    const abort = new AbortController();
+    img.abort = abort;
+    inFlight++;
+    fetch(url, { signal: abort.signal }).then(async (r) => {
+      if (r.ok) {
+        const blob = URL.createObjectURL(await r.blob());
+        blobs.set(url, blob);
+        if (blobs.size > 512) blobs.delete(blobs.keys().next().value);
+        for (const other of shown.values()) if (other.dataset.url === url && !other.src) other.src = blob;
+        return;
+      }
+      const message = await r.text();
+      if (r.status !== 503) { $("message").textContent = message; return; }
+      // The server was busy: ask again a little later.
+      const tries = Number(img.dataset.tries) + 1;
+      img.dataset.tries = String(tries);
+      if (tries <= 8) setTimeout(() => { if (img.isConnected) { waiting.push(img); pump(); } }, 250 * tries);
+    }).catch(() => {}).finally(() => {
+      inFlight--; pending.delete(url); img.abort = null;
+      // Cancelled or failed: the tile's other copies still on screen fetch it themselves.
+      if (!blobs.has(url)) {
+        for (const other of shown.values()) if (other !== img && other.dataset.url === url && !other.src) waiting.push(other);
+      }
+      pump();
+    });
+  }
+
+  // A tile that left the screen: its fetch is cancelled, so the server skips painting it.
+  function drop(img) {
+    if (img.abort) img.abort.abort();
+    img.remove();
   }
 
   function redraw() {
-    for (const img of shown.values()) img.remove();
+    for (const img of shown.values()) drop(img);
     shown.clear();
     $("message").textContent = "";
     writeHash();
@@ -119,7 +160,7 @@
     $("tile").checked = state.tile;
     $("tile").addEventListener("change", () => { state.tile = $("tile").checked; redraw(); });
     $("new-seed").addEventListener("click", () => {
-      state.seed = Math.floor(Math.random() * 1e9); $("seed").value = String(state.seed); redraw();
+      state.seed = String(Math.floor(Math.random() * 1e9)); $("seed").value = state.seed; redraw();
     });
     $("export").addEventListener("click", exportView);
   }
@@ -164,20 +205,20 @@
     const q = viewQuery();
     q.set("x", String(left)); q.set("y", String(top)); q.set("size", size);
     $("status").textContent = "writing…";
-    fetch("/export?" + q.toString(), { method: "POST" }).then(async (r) => {
+    fetch("/export?" + q.toString(), { method: "POST", headers: { "X-Ipfn": "1" } }).then(async (r) => {
       if (!r.ok) { $("status").textContent = await r.text(); return; }
       const out = await r.json();
       $("command").textContent = out.command;
       $("export-link").href = "/exports/" + encodeURIComponent(out.file);
       $("export-link").textContent = out.path;
-      $("status").textContent = "written";
+      $("status").textContent = "written" + (out.note ? ` (${out.note})` : "");
     }).catch((e) => { $("status").textContent = String(e); });
   }
 
   function showModel() {
     const m = info.model;
     if (!m) { $("model").textContent = "no checkpoint yet: the plane appears after the run's first"; return; }
-    const k = m.k.map((v) => v.toFixed(3)).join(", ");
+    const k = m.k.map((v) => (typeof v === "number" ? v.toFixed(3) : "NaN")).join(", ");
     $("model").textContent = `${m.description} · ${m.dims}D, ${m.channels} channels, K = (${k}) · ${m.device}`;
     $("tile-row").hidden = m.dims !== 2;
     $("guide-row").hidden = !m.guided;
@@ -287,7 +328,8 @@
     } catch (e) {
       $("status").textContent = "the server does not answer: " + e;
     }
-    if (info && info.run) setTimeout(poll, 2000);
+    // A run is polled every 2 s; a model file every 5 s (it may be replaced).
+    setTimeout(poll, info && info.run ? 2000 : 5000);
   }
 
   if (REPORT) {

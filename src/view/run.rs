@@ -118,9 +118,10 @@ pub fn report_html(data: &Value) -> String {
         .replace('<', "\\u003c")
         .replace('>', "\\u003e")
         .replace('&', "\\u0026");
+    // The script first: the data, inserted last, is never searched for markers.
     super::PAGE_HTML
-        .replace("/*IPFN_DATA*/", &format!("window.IPFN_REPORT = {json};"))
         .replace("/*IPFN_SCRIPT*/", super::PAGE_JS)
+        .replacen("/*IPFN_DATA*/", &format!("window.IPFN_REPORT = {json};"), 1)
 }
 
 /// Writes `report.html` into the run folder (atomically): the metrics plots, previews and config
@@ -164,8 +165,10 @@ mod tests {
 
     #[test]
     fn report_data_cannot_close_the_script() {
-        let html = report_html(&json!({"config": "</script><script>alert(1)</script>"}));
+        let config = "</script><script>alert(1)</script> /*IPFN_SCRIPT*/ /*IPFN_DATA*/";
+        let html = report_html(&json!({ "config": config }));
         assert!(!html.contains("</script><script>alert"));
-        assert!(html.contains("window.IPFN_REPORT"));
+        assert_eq!(html.matches("window.IPFN_REPORT = ").count(), 1);
+        assert_eq!(html.matches("function plot(").count(), 1, "the script once");
     }
 }

@@ -15,8 +15,9 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
 
-use axum::extract::{Path, RawQuery, State};
-use axum::http::{StatusCode, header};
+use axum::extract::{Path, RawQuery, Request, State};
+use axum::http::{Method, StatusCode, header};
+use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use serde_json::json;
@@ -113,6 +114,8 @@ struct Counters {
 }
 
 struct Shared {
+    /// The `Host` values a request may carry (None: any, when told to listen beyond loopback).
+    hosts: Option<Vec<String>>,
     source: ModelSource,
     run_dir: Option<PathBuf>,
     config: ServerConfig,
@@ -208,7 +211,19 @@ impl ViewServer {
             .map_err(|e| {
                 crate::input_error!("cannot listen on {addr}: {e}; choose another --port")
             })?;
+        let port = listener.local_addr().map(|a| a.port()).unwrap_or(0);
+        let bound = match addr.ip() {
+            std::net::IpAddr::V6(ip) => format!("[{ip}]"),
+            ip => ip.to_string(),
+        };
+        let hosts = addr.ip().is_loopback().then(|| {
+            [bound.as_str(), "127.0.0.1", "localhost", "[::1]"]
+                .iter()
+                .map(|h| format!("{h}:{port}"))
+                .collect()
+        });
         let shared = Shared {
+            hosts,
             source,
             run_dir,
             config,
@@ -251,6 +266,10 @@ impl ViewServer {
             .method_not_allowed_fallback(|| async {
                 text(StatusCode::METHOD_NOT_ALLOWED, "method not allowed")
             })
+            .layer(axum::middleware::from_fn_with_state(
+                self.shared.clone(),
+                guard,
+            ))
             .with_state(self.shared.clone());
         std::thread::scope(|scope| {
             for _ in 0..self.shared.config.render_threads.max(1) {
@@ -268,6 +287,12 @@ impl ViewServer {
             });
             stop.store(true, Ordering::SeqCst);
             self.shared.work.notify_all();
+            // Waiting requests are answered (503) as their jobs are dropped.
+            self.shared
+                .queue
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .clear();
             served.map_err(|e| Error::Runtime(format!("the server stopped: {e}")))
         })
     }
@@ -297,7 +322,13 @@ fn render_loop(shared: &Shared, stop: &AtomicBool) {
             None => {
                 shared.counters.rendering.fetch_add(1, Ordering::SeqCst);
                 let size = [ask.side, ask.side];
-                let png = ask.model.tile_png(&ask.view, ask.at, size).map(Arc::new);
+                // A failing device (out of memory, lost) answers 500, and the thread lives on.
+                let painted = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    ask.model.tile_png(&ask.view, ask.at, size)
+                }));
+                let png = painted
+                    .unwrap_or_else(|_| Err(Error::Runtime("the tile's render failed".into())))
+                    .map(Arc::new);
                 shared.counters.rendering.fetch_sub(1, Ordering::SeqCst);
                 if let Ok(png) = &png {
                     shared.counters.rendered.fetch_add(1, Ordering::Relaxed);
@@ -330,8 +361,41 @@ async fn page() -> Response {
     )
 }
 
+/// The model now, read off the async runtime's threads (a reload parses a checkpoint).
+async fn current_model(shared: &Arc<Shared>) -> Result<Option<Arc<ViewModel>>> {
+    let shared = shared.clone();
+    tokio::task::spawn_blocking(move || shared.source.current())
+        .await
+        .unwrap_or_else(|e| Err(Error::Runtime(format!("loading the model: {e}"))))
+}
+
+/// Every request: its `Host` must be this server's loopback address (so a web page elsewhere
+/// cannot reach it by DNS rebinding), and a POST must carry `X-Ipfn: 1`, which a cross-site form
+/// or simple request cannot send.
+async fn guard(State(shared): SharedState, request: Request, next: Next) -> Response {
+    let host = request
+        .headers()
+        .get(header::HOST)
+        .and_then(|h| h.to_str().ok());
+    if let Some(hosts) = &shared.hosts
+        && !host.is_some_and(|h| hosts.iter().any(|a| a == h))
+    {
+        return text(
+            StatusCode::FORBIDDEN,
+            "this server answers its own address only",
+        );
+    }
+    if request.method() == Method::POST && request.headers().get("x-ipfn").is_none() {
+        return text(
+            StatusCode::FORBIDDEN,
+            "POST needs the header X-Ipfn: 1 (the page sends it)",
+        );
+    }
+    next.run(request).await
+}
+
 async fn info(State(shared): SharedState) -> Response {
-    let model = match shared.source.current() {
+    let model = match current_model(&shared).await {
         Ok(model) => model,
         Err(e) => return error_reply(&e),
     };
@@ -368,10 +432,10 @@ async fn run(State(shared): SharedState) -> Response {
 }
 
 /// What a tile request asks for, checked.
-fn tile_job(shared: &Shared, query: &str) -> Result<TileAsk> {
+fn tile_job(model: Option<Arc<ViewModel>>, query: &str) -> Result<TileAsk> {
     let q = parse_query(query)?;
     only(&q, &[&VIEW_PARAMS[..], &["x", "y", "size", "v"]].concat())?;
-    let model = shared.source.current()?.ok_or_else(|| {
+    let model = model.ok_or_else(|| {
         crate::input_error!("the run has no checkpoint yet; tiles appear after its first")
     })?;
     let view = View::from_query(&q, &model)?;
@@ -394,11 +458,16 @@ fn tile_job(shared: &Shared, query: &str) -> Result<TileAsk> {
 
 /// `/tile?x=&y=&size=&…view…`: from the cache, or painted by a render thread.
 async fn tile(State(shared): SharedState, RawQuery(query): RawQuery) -> Response {
-    let ask = match tile_job(&shared, query.as_deref().unwrap_or("")) {
+    let model = match current_model(&shared).await {
+        Ok(model) => model,
+        Err(e) => return error_reply(&e),
+    };
+    let ask = match tile_job(model, query.as_deref().unwrap_or("")) {
         Ok(ask) => ask,
         Err(e) => return error_reply(&e),
     };
-    if let Some(png) = shared.cache.lock().expect("cache lock").get(&ask.key) {
+    let hit = shared.cache.lock().expect("cache lock").get(&ask.key);
+    if let Some(png) = hit {
         shared.counters.cached.fetch_add(1, Ordering::Relaxed);
         return png_reply(&png);
     }
@@ -442,8 +511,13 @@ async fn exported(State(shared): SharedState, Path(name): Path<String>) -> Respo
     if !shared.exports.lock().expect("exports lock").contains(&name) {
         return text(StatusCode::NOT_FOUND, "no such export");
     }
+    let kind = if name.ends_with(".exr") {
+        "image/x-exr"
+    } else {
+        "image/png"
+    };
     match std::fs::read(shared.config.export_dir.join(&name)) {
-        Ok(bytes) => with_type(StatusCode::OK, "image/png", "no-store", bytes),
+        Ok(bytes) => with_type(StatusCode::OK, kind, "no-store", bytes),
         Err(_) => text(StatusCode::NOT_FOUND, "no such export"),
     }
 }
@@ -471,49 +545,84 @@ fn write_export(shared: &Shared, query: &str) -> Result<serde_json::Value> {
     let size = super::frame(&q, "size")?.unwrap_or([1024, 1024]);
     let at = [position(&q, "x")?, position(&q, "y")?];
     // A guided view exports its guide's frame; a 3D model's plane starts at the origin.
-    let (at, size) = match (&view.guide, model.config.dims) {
-        (Some((_, frame)), _) => ([0, 0], *frame),
-        (None, 3) => ([0, 0], size),
-        _ => (at, size),
+    let (at, size, note) = match (&view.guide, model.config.dims) {
+        (Some((_, frame)), _) => ([0, 0], *frame, "a guided view exports its guide's frame"),
+        (None, 3) => (
+            [0, 0],
+            size,
+            "a 3D plane is exported from the volume's origin",
+        ),
+        _ => (at, size, ""),
     };
+    let limit = if model.config.dims == 3 {
+        super::MAX_EXPORT_PLANE
+    } else {
+        super::MAX_EXPORT_PIXELS
+    };
+    let [rows, cols] = view.period.unwrap_or(size);
+    if rows * cols > limit {
+        return Err(crate::input_error!(
+            "size {cols}x{rows}: an export from the viewer paints at most {limit} pixels; use ipfn synth for larger"
+        ));
+    }
     let Ok(_one) = shared.export.try_lock() else {
         return Err(crate::input_error!(
             "an export is being written; wait for it"
         ));
     };
-    let name = format!(
-        "view-seed{}-{}x{}-at{}_{}.png",
-        view.seed, size[1], size[0], at[0], at[1]
-    );
-    let out = shared.config.export_dir.join(&name);
+    let out = shared
+        .config
+        .export_dir
+        .join(export_name(&view, at, [rows, cols]));
+    let files: Vec<PathBuf> = match &model.maps {
+        Some(set) => set
+            .outputs(&out, Some(8))?
+            .into_iter()
+            .map(|o| o.path)
+            .collect(),
+        None => vec![out.clone()],
+    };
+    let name = |p: &PathBuf| {
+        p.file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or("")
+            .to_string()
+    };
+    let ours = shared.exports.lock().expect("exports lock").clone();
+    if let Some(taken) = files
+        .iter()
+        .find(|f| f.exists() && !ours.contains(&name(f)))
+    {
+        return Err(crate::input_error!(
+            "{} exists and was not written by this viewer; move it, or start ipfn view with another --export-dir",
+            taken.display()
+        ));
+    }
     let mut args = view.synth_args(&model, at, size, &out);
     let command = super::command_line(&args);
-    if model.device != crate::device::DeviceChoice::Cpu {
-        args.push("--device".into());
-        args.push(format!("{:?}", model.device).to_lowercase());
-    }
     args.push("--quiet".into());
     (shared.exporter)(&args)?;
-    // A map set writes one file per map, named after the maps.
-    let files: Vec<String> = match &model.maps {
-        Some(set) => set
-            .outputs(&out, None)?
-            .iter()
-            .filter_map(|o| {
-                o.path
-                    .file_name()
-                    .and_then(|n| n.to_str())
-                    .map(String::from)
-            })
-            .collect(),
-        None => vec![name.clone()],
-    };
+    let names: Vec<String> = files.iter().map(name).collect();
     shared
         .exports
         .lock()
         .expect("exports lock")
-        .extend(files.iter().cloned());
+        .extend(names.iter().cloned());
+    let shown = names.get(view.map).unwrap_or(&names[0]);
     Ok(
-        json!({"file": files[0], "files": files, "path": out.display().to_string(), "command": command}),
+        json!({"file": shown, "files": names, "path": out.display().to_string(), "command": command, "note": note}),
+    )
+}
+
+/// An export's file name: seed, size and place, and a short hash of the whole view, so exports
+/// of different views never share a name.
+fn export_name(view: &View, at: [i64; 2], [rows, cols]: [usize; 2]) -> String {
+    use std::hash::{Hash, Hasher};
+    let mut hasher = std::collections::hash_map::DefaultHasher::new();
+    format!("{view:?}").hash(&mut hasher);
+    let hash = hasher.finish() as u32;
+    format!(
+        "view-seed{}-{cols}x{rows}-at{}_{}-{hash:08x}.png",
+        view.seed, at[0], at[1]
     )
 }

@@ -23,14 +23,23 @@ page.on("console", (m) => record.console.push(m.type() + ": " + m.text()));
 page.on("pageerror", (e) => record.console.push("pageerror: " + e.message));
 page.on("requestfailed", (r) => record.console.push("failed: " + r.url() + " " + r.failure()?.errorText));
 
-// Every tile the page fetched, saved with its URL.
+// Every tile the page fetched, saved with its URL: tile requests pass through here, so their
+// bodies are read as the server sent them.
 const tiles = [];
-page.on("response", async (r) => {
-  if (!r.url().includes("/tile?") || r.status() !== 200) return;
-  const body = await r.body();
-  const file = join(out, `tile-${tiles.length}.png`);
-  tiles.push({ url: r.url(), file });
-  writeFileSync(file, body);
+await page.route(/\/tile\?/, async (route) => {
+  try {
+    const response = await route.fetch();
+    const body = await response.body();
+    if (response.status() === 200 && body.length >= 8 && body.readUInt32BE(0) === 0x89504e47) {
+      const file = join(out, `tile-${tiles.length}.png`);
+      tiles.push({ url: route.request().url(), file });
+      writeFileSync(file, body);
+    }
+    await route.fulfill({ response, body });
+  } catch (e) {
+    // A tile that left the screen was cancelled by the page.
+    await route.abort().catch(() => {});
+  }
 });
 
 // Waits until every placed tile has loaded, then returns their places.
@@ -44,7 +53,7 @@ async function placed() {
     plane: (() => { const p = document.getElementById("plane"); return [p.clientWidth, p.clientHeight]; })(),
     tiles: [...document.querySelectorAll("#tiles img")].sort((a, b) =>
       Number(a.dataset.y) - Number(b.dataset.y) || Number(a.dataset.x) - Number(b.dataset.x)).map((i) => ({
-      src: i.getAttribute("src"), x: Number(i.dataset.x), y: Number(i.dataset.y),
+      src: i.dataset.url, x: Number(i.dataset.x), y: Number(i.dataset.y),
       left: parseFloat(i.style.left), top: parseFloat(i.style.top),
       width: i.naturalWidth, height: i.naturalHeight,
     })),

@@ -52,7 +52,7 @@ pub fn agent() -> ureq::Agent {
 pub fn fetch(viewer: &Viewer, method: &str, path: &str) -> (u16, Vec<u8>) {
     let url = format!("{}{path}", viewer.url);
     let mut response = match method {
-        "POST" => agent().post(&url).send_empty(),
+        "POST" => agent().post(&url).header("X-Ipfn", "1").send_empty(),
         _ => agent().get(&url).call(),
     }
     .unwrap();
