@@ -130,6 +130,41 @@ fn main() {
     assert!(out.status.success());
     let synth = start.elapsed().as_secs_f64();
 
+    print_table(Figures {
+        cold_wall,
+        warm_wall,
+        synth,
+        busy,
+        cold: &mut cold,
+        warm: &mut warm,
+        idle: &mut idle,
+        loaded: &mut loaded,
+    });
+}
+
+/// What one run measured.
+struct Figures<'a> {
+    cold_wall: f64,
+    warm_wall: f64,
+    synth: f64,
+    busy: usize,
+    cold: &'a mut [f64],
+    warm: &'a mut [f64],
+    idle: &'a mut [f64],
+    loaded: &'a mut [f64],
+}
+
+fn print_table(f: Figures) {
+    let Figures {
+        cold_wall,
+        warm_wall,
+        synth,
+        busy,
+        cold,
+        warm,
+        idle,
+        loaded,
+    } = f;
     let mpx = (TILES * SIDE * SIDE) as f64 / 1e6;
     println!(
         "ipfn view under load: {CLIENTS} clients, {TILES} distinct {SIDE}px tiles (shipped honeycomb, {mpx:.1} Mpx), loopback"
@@ -150,16 +185,16 @@ fn main() {
     );
     println!(
         "| tile latency p50 / p95, cold (s) | {:.2} / {:.2} | - | - |",
-        percentile(&mut cold, 0.5),
-        percentile(&mut cold, 0.95)
+        percentile(cold, 0.5),
+        percentile(cold, 0.95)
     );
     println!(
         "| tile latency p50 / p95, cached (ms) | {:.1} / {:.1} | - | - |",
-        1e3 * percentile(&mut warm, 0.5),
-        1e3 * percentile(&mut warm, 0.95)
+        1e3 * percentile(warm, 0.5),
+        1e3 * percentile(warm, 0.95)
     );
-    let (idle50, idle95) = (percentile(&mut idle, 0.5), percentile(&mut idle, 0.95));
-    let (load50, load95) = (percentile(&mut loaded, 0.5), percentile(&mut loaded, 0.95));
+    let (idle50, idle95) = (percentile(idle, 0.5), percentile(idle, 0.95));
+    let (load50, load95) = (percentile(loaded, 0.5), percentile(loaded, 0.95));
     println!(
         "| page (`/api/info`) p50 / p95 under load vs idle (ms) | {:.1} / {:.1} | {:.1} / {:.1} | {:.1} / {:.1} |",
         1e3 * load50,
