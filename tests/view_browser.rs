@@ -7,8 +7,8 @@ mod common;
 use std::path::Path;
 use std::process::Command;
 
-use common::view::{assert_same, pixels, synth, view};
-use common::{ipfn, stderr, tiny_run_folder};
+use common::tiny_run_folder;
+use common::view::{assert_same, pixels, synth, train_quietly, view};
 
 /// Headless chromium: Debian's `chromium` and tests/browser's playwright-core (`npm ci`), as
 /// `.ci/run` installs them. Skipped (with a message) only outside CI when they are missing.
@@ -141,23 +141,7 @@ fn chromium_shows_a_run_and_its_report() {
     }
     let dir = tiny_run_folder();
     let d = dir.path();
-    let out = ipfn(
-        d,
-        &[
-            "train",
-            "ex.png",
-            "--config",
-            "tiny.toml",
-            "--iterations",
-            "12",
-            "--device",
-            "flex",
-            "-q",
-            "--out",
-            "run",
-        ],
-    );
-    assert!(out.status.success(), "{}", stderr(&out));
+    train_quietly(d, "tiny.toml", "12", &["ex.png", "--out", "run"]);
     let viewer = view(d, &["run"]);
     let mut env = screenshot("view-run.png");
     env.push((

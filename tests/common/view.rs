@@ -99,3 +99,20 @@ pub fn assert_same(a: &(u32, u32, Vec<u8>), b: &(u32, u32, Vec<u8>), what: &str)
     let differ = a.2.iter().zip(&b.2).filter(|(x, y)| x != y).count();
     assert_eq!(differ, 0, "{what}: {differ} values differ");
 }
+
+/// `ipfn train --config CONFIG --iterations N -q --device flex ARGS` in `dir`, which must succeed:
+/// the small runs the viewer's tests look at.
+pub fn train_quietly(dir: &Path, config: &str, iterations: &str, args: &[&str]) {
+    let head = [
+        "train",
+        "--config",
+        config,
+        "--iterations",
+        iterations,
+        "-q",
+        "--device",
+        "flex",
+    ];
+    let out = ipfn(dir, &[&head[..], args].concat());
+    assert!(out.status.success(), "{}", stderr(&out));
+}
