@@ -18,6 +18,7 @@
 //! - [`maps`]: material map sets (albedo, normal, height, ...) learned and painted together.
 //! - [`mesh`]: zero level sets of volumes as meshes (surface nets), welded across chunks.
 //! - [`metrics`]: SIFID (Keras InceptionV3 stem), seam score of tiles, dominant periods.
+//! - [`fit`]: `ipfn fit`, a photo turned into a seamless tile by a periodic sine network.
 //! - [`procedural`]: exemplars drawn by our own code, with known periods.
 //! - [`bench`]: `ipfn bench`, speed beside floors measured in the same run.
 //! - [`cli`]: the `ipfn` command line.
@@ -31,6 +32,7 @@ pub mod device;
 pub mod encoding;
 pub mod error;
 pub mod exemplar;
+pub mod fit;
 pub mod generator;
 pub mod io;
 pub mod latent;

@@ -29,12 +29,16 @@ pub struct ChosenModel {
     pub maps: Option<MapSet>,
 }
 
-/// Loads `--model`, else the most recent model in `dir`, else the shipped honeycomb.
-pub fn choose_model(explicit: Option<&Path>, dir: &Path) -> Result<ChosenModel> {
+/// The checkpoint `--model` names, else the most recent model in `dir`, else the shipped
+/// honeycomb's, with a phrase saying where it came from and its path (none for the shipped one).
+pub fn choose_checkpoint(
+    explicit: Option<&Path>,
+    dir: &Path,
+) -> Result<(Checkpoint, String, Option<PathBuf>)> {
     let in_folder = explicit.filter(|p| p.is_dir()).map(|dir| {
         run_model(dir).ok_or_else(|| {
             input_error!(
-                "{}: no best.ipfn or latest.ipfn in this folder; give a model file",
+                "{}: no tile.ipfn, best.ipfn or latest.ipfn in this folder; give a model file",
                 dir.display()
             )
         })
@@ -43,20 +47,37 @@ pub fn choose_model(explicit: Option<&Path>, dir: &Path) -> Result<ChosenModel> 
         Some(model) => Some(model?),
         None => explicit.map(Path::to_path_buf),
     };
-    let explicit = explicit.as_deref();
-    let (checkpoint, description) = match explicit {
-        Some(path) => (Checkpoint::load(path)?, format!("{}", path.display())),
+    Ok(match explicit {
+        Some(path) => (
+            Checkpoint::load(&path)?,
+            format!("{}", path.display()),
+            Some(path),
+        ),
         None => match most_recent_model(dir) {
             Some(path) => (
                 Checkpoint::load(&path)?,
                 format!("{} (most recent model in this folder; --model to choose)", path.display()),
+                Some(path),
             ),
             None => (
                 Checkpoint::from_bytes(SHIPPED_HONEYCOMB, Path::new("<shipped honeycomb>"))?,
                 "shipped honeycomb (the IPFN authors' pretrained generator, MIT; --model to choose)".to_string(),
+                None,
             ),
         },
-    };
+    })
+}
+
+/// Loads `--model`, else the most recent model in `dir`, else the shipped honeycomb.
+pub fn choose_model(explicit: Option<&Path>, dir: &Path) -> Result<ChosenModel> {
+    let (checkpoint, description, path) = choose_checkpoint(explicit, dir)?;
+    if crate::fit::PeriodicNet::is_in(&checkpoint) {
+        return Err(input_error!(
+            "{description}: a tile fitted by `ipfn fit`, not a generator; `ipfn synth --model {}` paints it as an image (no volumes, guides, mirrors or Zarr stores)",
+            path.as_deref().unwrap_or(Path::new("TILE")).display()
+        ));
+    }
+    let explicit = path.as_deref();
     let (config, weights) = GeneratorWeights::read_from(&checkpoint)?;
     let maps = MapSet::read_from(&checkpoint, explicit.unwrap_or(Path::new("model")))?;
     if let Some(set) = &maps
@@ -77,10 +98,10 @@ pub fn choose_model(explicit: Option<&Path>, dir: &Path) -> Result<ChosenModel> 
     })
 }
 
-/// The model a run folder paints with: its `best.ipfn` (the best-scoring checkpoint) where
-/// there is one, else its `latest.ipfn`.
+/// The model a run folder paints with: a fit's `tile.ipfn`, else a training run's `best.ipfn`
+/// (the best-scoring checkpoint) where there is one, else its `latest.ipfn`.
 pub fn run_model(run: &Path) -> Option<PathBuf> {
-    ["best.ipfn", "latest.ipfn"]
+    ["tile.ipfn", "best.ipfn", "latest.ipfn"]
         .iter()
         .map(|name| run.join(name))
         .find(|p| p.is_file())

@@ -4,7 +4,9 @@
 
 mod bench;
 mod eval;
+mod fit;
 mod synth;
+mod tile;
 mod tools;
 mod train;
 mod view;
@@ -15,6 +17,7 @@ use clap::{Parser, Subcommand};
 use crate::error::Result;
 pub use bench::BenchArgs;
 pub use eval::EvalArgs;
+pub use fit::FitArgs;
 pub use synth::{Size, SynthArgs};
 pub use tools::{DrawArgs, ImportArgs, VoxelizeArgs};
 pub use train::TrainArgs;
@@ -52,6 +55,9 @@ pub enum Command {
     /// Draw a procedural exemplar: bricks, weave, stripes, graded (PNG), material (a map set) or
     /// gyroid (an SDF volume).
     Draw(DrawArgs),
+    /// Turn a photo (or a map set) into an exactly periodic, seamless tile: a periodic
+    /// sinusoidal network fitted to it (Paz, Novello and Velho), paintable at any size.
+    Fit(Box<FitArgs>),
     /// Score a model against its exemplar (SIFID, seam score, period), or two images (SIFID).
     Eval(EvalArgs),
     /// Time synthesis and training on this machine's devices, beside floors measured now.
@@ -73,6 +79,7 @@ pub fn run() -> Result<()> {
         Command::Draw(args) => tools::draw(args),
         Command::Voxelize(args) => tools::voxelize(args),
         Command::Eval(args) => eval::eval(args),
+        Command::Fit(args) => fit::fit(*args),
         Command::Bench(args) => bench::bench(args),
         Command::View(args) => view::view(args),
     }

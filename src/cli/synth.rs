@@ -12,7 +12,7 @@ use crate::generator::{GeneratorConfig, GeneratorWeights};
 use crate::input_error;
 use crate::io::OutputFormat;
 use crate::maps::MapOutput;
-use crate::model::choose_model;
+use crate::model::{choose_checkpoint, choose_model};
 use crate::synth::{DEFAULT_BAND_PIXELS, Synth};
 
 #[derive(Debug, Args)]
@@ -110,6 +110,11 @@ pub struct SynthArgs {
     /// (NVIDIA GPU; a build with --features cuda).
     #[arg(long, default_value = "cpu")]
     pub device: String,
+    /// For a tile from `ipfn fit`: the level of detail, in stages (0 to the tile's stage
+    /// count, fractions blend): the stages above it are faded out, an anti-aliased rendering
+    /// for a smaller size. Default: every stage.
+    #[arg(long, value_name = "T")]
+    pub lod: Option<f32>,
     /// Print nothing but errors.
     #[arg(long, short)]
     pub quiet: bool,
@@ -226,6 +231,15 @@ fn synth_image(args: &SynthArgs, device: DeviceChoice, [height, width]: [usize; 
     if let Some(bits) = args.bits.filter(|b| *b != 8 && *b != 16) {
         return Err(input_error!(
             "--bits {bits}: PNG output is 8 or 16 bits per channel"
+        ));
+    }
+    let (checkpoint, description, _) = choose_checkpoint(args.model.as_deref(), Path::new("."))?;
+    if crate::fit::PeriodicNet::is_in(&checkpoint) {
+        return super::tile::synth_tile(args, device, &checkpoint, &description);
+    }
+    if args.lod.is_some() {
+        return Err(input_error!(
+            "--lod is for tiles fitted by `ipfn fit`; {description} is a generator"
         ));
     }
     let format = OutputFormat::from_path(&args.out, args.bits.unwrap_or(8))?;

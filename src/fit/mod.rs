@@ -1,0 +1,216 @@
+//! `ipfn fit`: a photograph turned into an exactly periodic, seamless tile by a periodic
+//! sinusoidal network (Paz, Novello and Velho, "Implicit Neural Representation of Tileable
+//! Material Textures"; their code is MR-Net, visgraf/mrnet). Not an IPFN: one network is one
+//! texture, with no random samples, so it is its own command and its own model kind.
+//!
+//! - [`network`]: the network (integer first-layer frequencies, SIREN hidden layers, stages).
+//! - [`fused`]: its CPU forward with exact tangents and hand-written backward (`gemm`).
+//! - [`reference`]: the same with burn tensors and autodiff, on any device.
+//! - [`target`]: the Poisson seam loss's targets (colours, Sobel gradients, λ, masks), batches.
+//! - [`run`]: the fitting loop, run folder, checkpoints and resume.
+//! - [`render`]: painting the tile at any size and level of detail.
+//! - [`crossfade`]: the classic "make seamless" filter, for comparison.
+
+pub mod crossfade;
+pub mod fused;
+pub mod network;
+pub mod reference;
+pub mod render;
+pub mod run;
+pub mod target;
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::Result;
+use crate::exemplar::Exemplar;
+use crate::input_error;
+use crate::maps::MapFiles;
+pub use network::{NetworkShape, PeriodicNet, StageShape};
+pub use render::TilePainter;
+pub use run::{FitEnd, Fitter};
+
+/// The settings of a fit. Every field has a default; `ipfn fit`'s flags set them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FitConfig {
+    /// The photo (or, with `maps`, none).
+    pub photo: Option<PathBuf>,
+    /// A material map set fitted by one network.
+    pub maps: Option<MapFiles>,
+    /// A mask of the photo's size: pixels at or below half gray are left out of the loss.
+    pub mask: Option<PathBuf>,
+    pub seed: u64,
+    /// The highest frequency (cycles per period, per axis) of the last stage; 0 picks a quarter
+    /// of the shorter side. At most half the shorter side (Nyquist).
+    pub band_limit: usize,
+    /// Stages from low to high frequencies (levels of detail); stage `s` of `S` holds the
+    /// frequencies up to `band_limit / 2^(S-1-s)` and fits the photo blurred to that band.
+    pub stages: usize,
+    /// First-layer frequencies of the last stage (lower stages: a quarter, at least 16).
+    pub frequencies: usize,
+    /// Hidden sine layers of the last stage (lower stages: a quarter of each width).
+    pub hidden: Vec<usize>,
+    /// SIREN's ω0 of the hidden layers.
+    pub omega0: f32,
+    /// Adam's learning rate, decayed along a cosine to 1% by each stage's end.
+    pub lr: f64,
+    /// Pixels per step.
+    pub batch: usize,
+    /// The outer part of the distance from the centre to the border where the seam term
+    /// weighs in (0 turns it off: the tile then keeps the photo's own seam).
+    pub seam_band: f32,
+    /// Steps per stage; empty until planned from `time`.
+    pub iterations: Vec<u64>,
+    /// A time budget (`15m`) the steps are planned from.
+    pub time: Option<String>,
+    /// Steps between checkpoints.
+    pub checkpoint_every: u64,
+}
+
+impl Default for FitConfig {
+    fn default() -> Self {
+        Self {
+            photo: None,
+            maps: None,
+            mask: None,
+            seed: 0,
+            band_limit: 0,
+            stages: 3,
+            frequencies: 256,
+            hidden: vec![256, 256],
+            omega0: 30.0,
+            lr: 1e-3,
+            batch: 8192,
+            seam_band: 0.2,
+            iterations: Vec::new(),
+            time: None,
+            checkpoint_every: 250,
+        }
+    }
+}
+
+impl FitConfig {
+    /// The band limit used for a tile of `[rows, cols]` pixels.
+    pub fn band(&self, period: [usize; 2]) -> usize {
+        match self.band_limit {
+            0 => (period[0].min(period[1]) / 4).max(1),
+            b => b,
+        }
+    }
+
+    /// Checks the settings against a tile of `[rows, cols]` pixels.
+    pub fn validate(&self, period: [usize; 2], source: &str) -> Result<()> {
+        let nyquist = period[0].min(period[1]) / 2;
+        if period.contains(&0) {
+            return Err(input_error!(
+                "{source}: a period of 0 pixels: the photo is empty"
+            ));
+        }
+        if self.band(period) > nyquist {
+            return Err(input_error!(
+                "--band-limit {}: above what a {}x{} tile's pixels can hold (Nyquist: at most {nyquist} cycles per period)",
+                self.band_limit,
+                period[1],
+                period[0]
+            ));
+        }
+        let bad = |what: String| Err(input_error!("{what}"));
+        if !(1..=8).contains(&self.stages) {
+            return bad(format!("--stages {}: expected 1 to 8", self.stages));
+        }
+        if !(1..=4096).contains(&self.frequencies) {
+            return bad(format!(
+                "--frequencies {}: expected 1 to 4096",
+                self.frequencies
+            ));
+        }
+        if self.hidden.is_empty()
+            || self.hidden.len() > 16
+            || self.hidden.iter().any(|&w| !(1..=4096).contains(&w))
+        {
+            return bad(format!(
+                "--hidden {:?}: expected 1 to 16 layer widths of 1 to 4096",
+                self.hidden
+            ));
+        }
+        if !(self.lr.is_finite() && self.lr > 0.0)
+            || !(self.omega0.is_finite() && self.omega0 > 0.0)
+        {
+            return bad("--lr and omega0 must be positive and finite".into());
+        }
+        if !(1..=1 << 22).contains(&self.batch) {
+            return bad(format!("--batch {}: expected 1 to 4194304", self.batch));
+        }
+        if !(0.0..=1.0).contains(&self.seam_band) {
+            return bad(format!("--seam-band {}: expected 0 to 1", self.seam_band));
+        }
+        if self.checkpoint_every == 0 {
+            return bad("checkpoint_every must be at least 1".into());
+        }
+        Ok(())
+    }
+
+    /// The network's shape for a tile of `[rows, cols]` pixels with `channels`.
+    pub fn shape(&self, period: [usize; 2], channels: usize) -> NetworkShape {
+        let band = self.band(period);
+        let s = self.stages;
+        let stages = (0..s)
+            .map(|i| {
+                let upper = (band >> (s - 1 - i)).max(1);
+                let lower = if i == 0 { 0 } else { (band >> (s - i)).max(1) };
+                let last = i + 1 == s;
+                let quarter = |w: usize| if last { w } else { (w / 4).max(16) };
+                let count = quarter(self.frequencies);
+                StageShape {
+                    frequencies: network::half_band(
+                        lower,
+                        upper.max(lower + 1),
+                        count,
+                        crate::latent::derive_seed(self.seed, &[0xF0, i as u64]),
+                    ),
+                    hidden: self.hidden.iter().map(|&w| quarter(w)).collect(),
+                }
+            })
+            .collect();
+        NetworkShape {
+            period,
+            channels,
+            omega0: self.omega0,
+            stages,
+        }
+    }
+
+    /// Stage `stage`'s level of the photo: blurred so its frequencies stay near the stage's
+    /// band (a Gaussian that halves `upper` cycles per period); the last stage's is the photo.
+    pub fn level(&self, photo: &Exemplar, stage: usize) -> Exemplar {
+        if stage + 1 >= self.stages {
+            return photo.clone();
+        }
+        let period = [photo.height, photo.width];
+        let upper = (self.band(period) >> (self.stages - 1 - stage)).max(1) as f32;
+        target::blur(photo, period.map(|p| 0.19 * p as f32 / upper))
+    }
+}
+
+/// Peak signal-to-noise ratio in dB of `a` against `b` (values in [-1, 1], so the peak is 2),
+/// over the pixels where `keep` holds.
+pub fn psnr(a: &[f32], b: &[f32], channels: usize, keep: impl Fn(usize) -> bool) -> f64 {
+    let (mut sum, mut count) = (0f64, 0usize);
+    for (i, (pa, pb)) in a
+        .chunks_exact(channels)
+        .zip(b.chunks_exact(channels))
+        .enumerate()
+    {
+        if keep(i) {
+            for (x, y) in pa.iter().zip(pb) {
+                let e = (x.clamp(-1.0, 1.0) - y) as f64;
+                sum += e * e;
+            }
+            count += channels;
+        }
+    }
+    let mse = sum / count.max(1) as f64;
+    10.0 * (4.0 / mse.max(1e-20)).log10()
+}
