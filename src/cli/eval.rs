@@ -9,7 +9,7 @@ use clap::Args;
 use crate::device::DeviceChoice;
 use crate::error::Result;
 use crate::input_error;
-use crate::model::choose_model;
+use crate::model::{choose_checkpoint, choose_model};
 
 #[derive(Debug, Args)]
 pub struct EvalArgs {
@@ -85,6 +85,10 @@ pub(super) fn eval(args: EvalArgs) -> Result<()> {
         return Err(input_error!("--samples 0: need at least one sample"));
     }
     let exemplar = crate::exemplar::read_exemplar(exemplar_path)?;
+    let (checkpoint, description, _) = choose_checkpoint(args.model.as_deref(), Path::new("."))?;
+    if crate::fit::PeriodicNet::is_in(&checkpoint) {
+        return eval_tile(&args, &checkpoint, &description, &exemplar, exemplar_path);
+    }
     let model = choose_model(args.model.as_deref(), Path::new("."))?;
     let report = metrics::evaluate_model(
         &model.config,
@@ -138,4 +142,57 @@ fn print_report(r: &crate::metrics::ModelReport) {
         fmt_period(r.period_exemplar[0]),
         fmt_period(r.period_exemplar[1])
     );
+}
+
+/// A tile fitted by `ipfn fit` against its photo: PSNR (whole, and inside the seam band of
+/// the default fit) and the seam score of the tile laid 2x2.
+fn eval_tile(
+    args: &EvalArgs,
+    checkpoint: &crate::checkpoint::Checkpoint,
+    description: &str,
+    photo: &crate::exemplar::Exemplar,
+    photo_path: &Path,
+) -> Result<()> {
+    let net = crate::fit::PeriodicNet::read_from(checkpoint)?;
+    let [h, w] = net.shape.period;
+    let c = net.shape.channels;
+    if (photo.height, photo.width, photo.channels) != (h, w, c) {
+        return Err(input_error!(
+            "{}: {}x{} with {} channels, but the tile {description} was fitted to {w}x{h} with {c}: give the photo it was fitted to",
+            photo_path.display(),
+            photo.width,
+            photo.height,
+            photo.channels
+        ));
+    }
+    let mut painter = crate::fit::TilePainter::new(net);
+    painter.device = args.device.parse::<DeviceChoice>()?.burn_device()?;
+    let tile: Vec<f32> = painter
+        .render([0, 0], [h, w])
+        .iter()
+        .map(|v| v.clamp(-1.0, 1.0))
+        .collect();
+    let lambda = crate::fit::target::seam_mask(h, w, crate::fit::FitConfig::default().seam_band);
+    let whole = crate::fit::psnr(&tile, &photo.values, c, |_| true);
+    let interior = crate::fit::psnr(&tile, &photo.values, c, |i| lambda[i] == 0.0);
+    let seam = crate::metrics::seam_score(&tile, h, w, c)?;
+    let photo_seam = crate::metrics::seam_score(&photo.values, h, w, c)?;
+    if args.json {
+        let out = serde_json::json!({
+            "model": description,
+            "psnr": whole,
+            "psnr_interior": interior,
+            "seam_tile": seam,
+            "seam_photo": photo_seam,
+        });
+        println!("{out}");
+        return Ok(());
+    }
+    eprintln!("model: {description} (a periodic tile from ipfn fit)");
+    println!("PSNR           {whole:.2} dB against {} ({interior:.2} dB inside the seam band)", photo_path.display());
+    println!(
+        "seam score     {:.3} for the tile laid 2x2 (columns {:.3}, rows {:.3}); the photo laid 2x2: {:.3}. About 1 is seamless.",
+        seam.overall, seam.columns, seam.rows, photo_seam.overall
+    );
+    Ok(())
 }

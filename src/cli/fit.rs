@@ -57,8 +57,8 @@ pub struct FitArgs {
     /// fused CPU path), cpu (fused CPU), flex (burn on the CPU), wgpu or cuda.
     #[arg(long, default_value = "auto")]
     pub device: String,
-    /// The highest frequency, in cycles per period (default: a quarter of the shorter side;
-    /// at most half, Nyquist).
+    /// The highest first-layer frequency, in cycles per period (default: a sixteenth of the
+    /// shorter side; at most half, Nyquist).
     #[arg(long, value_name = "B")]
     pub band_limit: Option<usize>,
     /// Levels of detail, fitted from low to high frequencies.

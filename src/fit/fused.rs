@@ -122,8 +122,10 @@ struct Tape {
     /// Per hidden layer, `[q; a_d]`: the values' pre-activation `ω0 (hW + b)` and the tangents'
     /// `t W`, `[S n, outputs]`.
     products: Vec<Vec<f32>>,
-    /// The first layer's `θ`, `[n, F]`.
-    theta: Vec<f32>,
+    /// Per hidden layer, `cos q`, `[n, outputs]` (`sin q` is the next layer's input).
+    cos: Vec<Vec<f32>>,
+    /// The first layer's `cos θ`, `[n, F]` (`sin θ` is layer 0's input).
+    cos_theta: Vec<f32>,
     /// The head's outputs `[S n, C]`.
     out: Vec<f32>,
 }
@@ -137,14 +139,15 @@ impl Stage<'_> {
         let layers = w.layers.len();
         tape.inputs.resize_with(layers, Vec::new);
         tape.products.resize_with(layers - 1, Vec::new);
-        tape.theta.resize(n * f, 0.0);
+        tape.cos.resize_with(layers - 1, Vec::new);
+        tape.cos_theta.resize(n * f, 0.0);
         let x = &mut tape.inputs[0];
         x.resize(streams * n * f, 0.0);
         for (i, p) in positions.chunks_exact(2).enumerate() {
             for (j, (om, phase)) in self.angular.iter().zip(w.phase).enumerate() {
                 let theta = om[0] * p[0] + om[1] * p[1] + phase;
-                tape.theta[i * f + j] = theta;
                 let (s, c) = theta.sin_cos();
+                tape.cos_theta[i * f + j] = c;
                 x[i * f + j] = s;
                 if streams == 3 {
                     x[(n + i) * f + j] = c * om[0];
@@ -187,15 +190,17 @@ impl Stage<'_> {
             }
             let next = &mut rest[0];
             next.resize(rows * outputs, 0.0);
+            let cos = &mut tape.cos[l];
+            cos.resize(n * outputs, 0.0);
             let (q, a) = y.split_at(n * outputs);
             let (h, t) = next.split_at_mut(n * outputs);
-            for (h, q) in h.iter_mut().zip(q) {
-                *h = q.sin();
+            for ((h, c), q) in h.iter_mut().zip(cos.iter_mut()).zip(q) {
+                (*h, *c) = q.sin_cos();
             }
             for (s, t) in t.chunks_exact_mut(n * outputs).enumerate() {
                 let a = &a[s * n * outputs..(s + 1) * n * outputs];
-                for ((t, a), q) in t.iter_mut().zip(a).zip(q) {
-                    *t = om * q.cos() * a;
+                for ((t, a), c) in t.iter_mut().zip(a).zip(cos.iter()) {
+                    *t = om * c * a;
                 }
             }
         }
@@ -310,11 +315,11 @@ impl Stage<'_> {
             if l + 1 < layers.len() {
                 // g holds [dh'; dt'] of this hidden layer's output: turn it into [dz; da].
                 let om = self.omega0;
-                let y = &tape.products[l];
-                let (q, a) = y.split_at(n * outputs);
+                let a = &tape.products[l][n * outputs..];
+                let (sin, cos) = (&tape.inputs[l + 1][..n * outputs], &tape.cos[l]);
                 let (gq, ga) = g.split_at_mut(n * outputs);
                 for j in 0..n * outputs {
-                    let (s, co) = q[j].sin_cos();
+                    let (s, co) = (sin[j], cos[j]);
                     let mut cross = 0.0;
                     for d in 0..streams - 1 {
                         let k = d * n * outputs + j;
@@ -358,7 +363,7 @@ impl Stage<'_> {
         // The first layer: dφ = Σ dh cos θ - Σ_d dt_d sin θ ω_d.
         for i in 0..n {
             for j in 0..f {
-                let (s, co) = tape.theta[i * f + j].sin_cos();
+                let (s, co) = (tape.inputs[0][i * f + j], tape.cos_theta[i * f + j]);
                 let mut d = g[i * f + j] * co;
                 if tangents {
                     let om = self.angular[j];

@@ -42,11 +42,13 @@ pub struct FitConfig {
     /// A mask of the photo's size: pixels at or below half gray are left out of the loss.
     pub mask: Option<PathBuf>,
     pub seed: u64,
-    /// The highest frequency (cycles per period, per axis) of the last stage; 0 picks a quarter
-    /// of the shorter side. At most half the shorter side (Nyquist).
+    /// The highest frequency (cycles per period, per axis) of the first layer's last stage; 0
+    /// picks a sixteenth of the shorter side (32 for 512 pixels: the hidden sine layers add
+    /// harmonics above it). At most half the shorter side (Nyquist).
     pub band_limit: usize,
-    /// Stages from low to high frequencies (levels of detail); stage `s` of `S` holds the
-    /// frequencies up to `band_limit / 2^(S-1-s)` and fits the photo blurred to that band.
+    /// Stages from low to high frequencies (levels of detail); stage `s` of `S` holds
+    /// frequencies up to `band_limit / 2^(S-1-s)` and fits what the stages below left of the
+    /// photo blurred to that band (so each stage may also correct lower frequencies).
     pub stages: usize,
     /// First-layer frequencies of the last stage (lower stages: a quarter, at least 16).
     pub frequencies: usize,
@@ -95,7 +97,7 @@ impl FitConfig {
     /// The band limit used for a tile of `[rows, cols]` pixels.
     pub fn band(&self, period: [usize; 2]) -> usize {
         match self.band_limit {
-            0 => (period[0].min(period[1]) / 4).max(1),
+            0 => (period[0].min(period[1]) / 16).max(1),
             b => b,
         }
     }
@@ -159,14 +161,13 @@ impl FitConfig {
         let stages = (0..s)
             .map(|i| {
                 let upper = (band >> (s - 1 - i)).max(1);
-                let lower = if i == 0 { 0 } else { (band >> (s - i)).max(1) };
                 let last = i + 1 == s;
                 let quarter = |w: usize| if last { w } else { (w / 4).max(16) };
                 let count = quarter(self.frequencies);
                 StageShape {
                     frequencies: network::half_band(
-                        lower,
-                        upper.max(lower + 1),
+                        0,
+                        upper,
                         count,
                         crate::latent::derive_seed(self.seed, &[0xF0, i as u64]),
                     ),
@@ -214,3 +215,6 @@ pub fn psnr(a: &[f32], b: &[f32], channels: usize, keep: impl Fn(usize) -> bool)
     let mse = sum / count.max(1) as f64;
     10.0 * (4.0 / mse.max(1e-20)).log10()
 }
+
+#[cfg(test)]
+mod tests;
