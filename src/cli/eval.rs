@@ -154,28 +154,29 @@ fn eval_tile(
     photo_path: &Path,
 ) -> Result<()> {
     let net = crate::fit::PeriodicNet::read_from(checkpoint)?;
-    let [h, w] = net.shape.period;
-    let c = net.shape.channels;
-    if (photo.height, photo.width, photo.channels) != (h, w, c) {
+    let period = net.shape.period;
+    let (h, w, c) = (photo.height, photo.width, net.shape.channels);
+    if photo.channels != c || h < period[0] || w < period[1] {
         return Err(input_error!(
-            "{}: {}x{} with {} channels, but the tile {description} was fitted to {w}x{h} with {c}: give the photo it was fitted to",
+            "{}: {w}x{h} with {} channels, but the tile {description} has a {}x{} period and {c} channels: give the photo it was fitted to",
             photo_path.display(),
-            photo.width,
-            photo.height,
-            photo.channels
+            photo.channels,
+            period[1],
+            period[0]
         ));
     }
     let mut painter = crate::fit::TilePainter::new(net);
     painter.device = args.device.parse::<DeviceChoice>()?.burn_device()?;
-    let tile: Vec<f32> = painter
-        .render([0, 0], [h, w])
-        .iter()
-        .map(|v| v.clamp(-1.0, 1.0))
-        .collect();
-    let lambda = crate::fit::target::seam_mask(h, w, crate::fit::FitConfig::default().seam_band);
+    let paint = |shape: [usize; 2]| -> Vec<f32> {
+        let values = painter.render([0, 0], shape);
+        values.iter().map(|v| v.clamp(-1.0, 1.0)).collect()
+    };
+    let (tile, one) = (paint([h, w]), paint(period));
+    let lambda =
+        crate::fit::target::seam_mask(h, w, crate::fit::FitConfig::default().seam_band_for([h, w]));
     let whole = crate::fit::psnr(&tile, &photo.values, c, |_| true);
     let interior = crate::fit::psnr(&tile, &photo.values, c, |i| lambda[i] == 0.0);
-    let seam = crate::metrics::seam_score(&tile, h, w, c)?;
+    let seam = crate::metrics::seam_score(&one, period[0], period[1], c)?;
     let photo_seam = crate::metrics::seam_score(&photo.values, h, w, c)?;
     if args.json {
         let out = serde_json::json!({
@@ -189,7 +190,10 @@ fn eval_tile(
         return Ok(());
     }
     eprintln!("model: {description} (a periodic tile from ipfn fit)");
-    println!("PSNR           {whole:.2} dB against {} ({interior:.2} dB inside the seam band)", photo_path.display());
+    println!(
+        "PSNR           {whole:.2} dB against {} ({interior:.2} dB inside the seam band)",
+        photo_path.display()
+    );
     println!(
         "seam score     {:.3} for the tile laid 2x2 (columns {:.3}, rows {:.3}); the photo laid 2x2: {:.3}. About 1 is seamless.",
         seam.overall, seam.columns, seam.rows, photo_seam.overall

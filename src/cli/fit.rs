@@ -33,6 +33,10 @@ pub struct FitArgs {
     /// and filled in by the periodic structure.
     #[arg(long, value_name = "PATH")]
     pub mask: Option<PathBuf>,
+    /// The tile's period in photo pixels, N or WxH (default: the photo's size). For a photo
+    /// that holds several periods of its pattern (`ipfn eval` reports the dominant one).
+    #[arg(long, value_name = "N|WxH", value_parser = parse_period)]
+    pub period: Option<[usize; 2]>,
     /// The tile image: .png (8 or 16 bit), .exr or .npy. Default RUN/tile.png (a map set: one
     /// file per map beside it).
     #[arg(long = "out", short = 'o', value_name = "PATH")]
@@ -50,7 +54,7 @@ pub struct FitArgs {
     /// --iterations is given.
     #[arg(long, value_name = "DURATION")]
     pub time: Option<String>,
-    /// Steps per stage (instead of a time budget).
+    /// Steps of the last stage (lower stages take a quarter as many), instead of a time budget.
     #[arg(long, value_name = "N")]
     pub iterations: Option<u64>,
     /// Where to fit and paint: auto (a GPU through cuda or wgpu when one is present, else the
@@ -94,6 +98,7 @@ impl FitArgs {
         let mut c = FitConfig {
             photo: self.photo.clone(),
             mask: self.mask.clone(),
+            period: self.period,
             ..FitConfig::default()
         };
         if let Some(files) = &self.maps {
@@ -113,12 +118,14 @@ impl FitArgs {
             hidden,
             lr,
             batch,
-            seam_band,
             seed,
             checkpoint_every
         );
+        if self.seam_band.is_some() {
+            c.seam_band = self.seam_band;
+        }
         if let Some(n) = self.iterations {
-            c.iterations = vec![n; c.stages];
+            c.iterations = FitConfig::stage_steps(n, c.stages);
         }
         c.time = match (&self.time, self.iterations) {
             (Some(t), _) => Some(t.clone()),
@@ -126,6 +133,19 @@ impl FitArgs {
             (None, Some(_)) => None,
         };
         Ok(c)
+    }
+}
+
+/// `--period N` or `WxH`, as `[rows, cols]`.
+fn parse_period(text: &str) -> std::result::Result<[usize; 2], String> {
+    let number = |v: &str| {
+        v.trim()
+            .parse::<usize>()
+            .map_err(|_| format!("'{text}': expected N or WxH in pixels"))
+    };
+    match text.split_once(['x', 'X']) {
+        Some((w, h)) => Ok([number(h)?, number(w)?]),
+        None => number(text).map(|n| [n, n]),
     }
 }
 
@@ -181,15 +201,15 @@ pub(super) fn fit(args: FitArgs) -> Result<()> {
             f
         }
     };
-    let (h, w) = (fitter.photo().height, fitter.photo().width);
+    let [h, w] = fitter.net.shape.period;
     let params = fitter.net.shape.parameters();
     say(format!(
-        "fitting {}x{w}x{h} tile: {} stages, band limit {}, {params} parameters ({:.2} per pixel), {} steps per stage, {device_name}; run folder {}",
+        "fitting {}x{w}x{h} tile: {} stages, band limit {}, {params} parameters ({:.2} per pixel), {:?} steps per stage, {device_name}; run folder {}",
         fitter.photo().channels,
         fitter.net.stages(),
         fitter.config.band([h, w]),
         params as f64 / (h * w) as f64,
-        fitter.stage_iterations(),
+        fitter.config.iterations,
         fitter.run_dir().display()
     ));
     let deadline = match (&args.resume, &fitter.config.time) {
@@ -285,6 +305,7 @@ fn write_outputs(
     }
     let photo = fitter.photo();
     let (h, w, c) = (photo.height, photo.width, photo.channels);
+    let period = fitter.net.shape.period;
     let outputs = match fitter.maps() {
         Some(set) => set.outputs(&out, args.bits)?,
         None => vec![MapOutput {
@@ -295,14 +316,18 @@ fn write_outputs(
         }],
     };
     let painter = fitter.painter();
-    painter.write(&outputs, [0, 0], [h, w], crate::synth::DEFAULT_BAND_PIXELS)?;
+    painter.write(&outputs, [0, 0], period, crate::synth::DEFAULT_BAND_PIXELS)?;
     let tile = painter.render([0, 0], [h, w]);
-    let lambda = crate::fit::target::seam_mask(h, w, fitter.config.seam_band);
+    let lambda = crate::fit::target::seam_mask(h, w, fitter.config.seam_band_for([h, w]));
     let kept = |i: usize| fitter.mask().is_none_or(|m| m[i] > 0.5);
     let whole = crate::fit::psnr(&tile, &photo.values, c, kept);
     let interior = crate::fit::psnr(&tile, &photo.values, c, |i| kept(i) && lambda[i] == 0.0);
-    let clamped: Vec<f32> = tile.iter().map(|v| v.clamp(-1.0, 1.0)).collect();
-    let seam = crate::metrics::seam_score(&clamped, h, w, c)?;
+    let one: Vec<f32> = painter
+        .render([0, 0], period)
+        .iter()
+        .map(|v| v.clamp(-1.0, 1.0))
+        .collect();
+    let seam = crate::metrics::seam_score(&one, period[0], period[1], c)?;
     let written: Vec<String> = outputs
         .iter()
         .map(|o| o.path.display().to_string())

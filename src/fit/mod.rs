@@ -41,6 +41,9 @@ pub struct FitConfig {
     pub maps: Option<MapFiles>,
     /// A mask of the photo's size: pixels at or below half gray are left out of the loss.
     pub mask: Option<PathBuf>,
+    /// The tile's period in photo pixels `[rows, cols]`; `None` takes the photo's size. A
+    /// photo holding several periods of a pattern fits one period from all of them.
+    pub period: Option<[usize; 2]>,
     pub seed: u64,
     /// The highest frequency (cycles per period, per axis) of the first layer's last stage; 0
     /// picks a sixteenth of the shorter side (32 for 512 pixels: the hidden sine layers add
@@ -61,9 +64,11 @@ pub struct FitConfig {
     /// Pixels per step.
     pub batch: usize,
     /// The outer part of the distance from the centre to the border where the seam term
-    /// weighs in (0 turns it off: the tile then keeps the photo's own seam).
-    pub seam_band: f32,
-    /// Steps per stage; empty until planned from `time`.
+    /// weighs in (0 turns it off: the tile then keeps the photo's own seam). `None` takes 0.1,
+    /// or more on a small photo so the band is at least 12 pixels deep.
+    pub seam_band: Option<f32>,
+    /// Steps per stage (the last stage's `N`, lower stages `N / 4`); empty until planned
+    /// from `time`.
     pub iterations: Vec<u64>,
     /// A time budget (`15m`) the steps are planned from.
     pub time: Option<String>,
@@ -77,15 +82,16 @@ impl Default for FitConfig {
             photo: None,
             maps: None,
             mask: None,
+            period: None,
             seed: 0,
             band_limit: 0,
             stages: 3,
             frequencies: 256,
-            hidden: vec![256, 256],
+            hidden: vec![288, 288],
             omega0: 30.0,
-            lr: 1e-3,
+            lr: 5e-4,
             batch: 8192,
-            seam_band: 0.2,
+            seam_band: None,
             iterations: Vec::new(),
             time: None,
             checkpoint_every: 250,
@@ -94,6 +100,14 @@ impl Default for FitConfig {
 }
 
 impl FitConfig {
+    /// Steps per stage for `last` steps of the last stage: a quarter of them for each lower
+    /// stage, whose blurred targets converge fast.
+    pub fn stage_steps(last: u64, stages: usize) -> Vec<u64> {
+        let mut steps = vec![(last / 4).max(1); stages.saturating_sub(1)];
+        steps.push(last);
+        steps
+    }
+
     /// The band limit used for a tile of `[rows, cols]` pixels.
     pub fn band(&self, period: [usize; 2]) -> usize {
         match self.band_limit {
@@ -102,12 +116,36 @@ impl FitConfig {
         }
     }
 
-    /// Checks the settings against a tile of `[rows, cols]` pixels.
-    pub fn validate(&self, period: [usize; 2], source: &str) -> Result<()> {
+    /// The seam band for a photo of `[rows, cols]` pixels (see `seam_band`).
+    pub fn seam_band_for(&self, photo: [usize; 2]) -> f32 {
+        let half = photo[0].min(photo[1]) as f32 / 2.0;
+        self.seam_band
+            .unwrap_or((12.0 / half.max(1.0)).clamp(0.1, 1.0))
+    }
+
+    /// The tile's period for a photo of `[rows, cols]` pixels.
+    pub fn period_for(&self, photo: [usize; 2]) -> [usize; 2] {
+        self.period.unwrap_or(photo)
+    }
+
+    /// Checks the settings against a photo of `[rows, cols]` pixels.
+    pub fn validate(&self, photo: [usize; 2], source: &str) -> Result<()> {
+        let period = self.period_for(photo);
         let nyquist = period[0].min(period[1]) / 2;
         if period.contains(&0) {
             return Err(input_error!(
-                "{source}: a period of 0 pixels: the photo is empty"
+                "{source}: a period of {}x{} pixels: a tile needs at least one pixel a side",
+                period[1],
+                period[0]
+            ));
+        }
+        if period[0] > photo[0] || period[1] > photo[1] {
+            return Err(input_error!(
+                "--period {}x{}: larger than the {}x{} photo; give at most its size",
+                period[1],
+                period[0],
+                photo[1],
+                photo[0]
             ));
         }
         if self.band(period) > nyquist {
@@ -145,8 +183,8 @@ impl FitConfig {
         if !(1..=1 << 22).contains(&self.batch) {
             return bad(format!("--batch {}: expected 1 to 4194304", self.batch));
         }
-        if !(0.0..=1.0).contains(&self.seam_band) {
-            return bad(format!("--seam-band {}: expected 0 to 1", self.seam_band));
+        if let Some(band) = self.seam_band.filter(|b| !(0.0..=1.0).contains(b)) {
+            return bad(format!("--seam-band {band}: expected 0 to 1"));
         }
         if self.checkpoint_every == 0 {
             return bad("checkpoint_every must be at least 1".into());
@@ -189,7 +227,7 @@ impl FitConfig {
         if stage + 1 >= self.stages {
             return photo.clone();
         }
-        let period = [photo.height, photo.width];
+        let period = self.period_for([photo.height, photo.width]);
         let upper = (self.band(period) >> (self.stages - 1 - stage)).max(1) as f32;
         target::blur(photo, period.map(|p| 0.19 * p as f32 / upper))
     }

@@ -169,7 +169,10 @@ impl Fitter {
         std::fs::create_dir_all(run_dir)
             .map_err(|e| input_error!("{}: cannot create: {e}", run_dir.display()))?;
         let lock = RunLock::acquire(run_dir)?;
-        let shape = config.shape([photo.height, photo.width], photo.channels);
+        let shape = config.shape(
+            config.period_for([photo.height, photo.width]),
+            photo.channels,
+        );
         let net = PeriodicNet::init(shape, config.seed);
         let adam = FlatAdam::new(net.params[0].len());
         Ok(Self {
@@ -265,29 +268,32 @@ impl Fitter {
         checkpoint
     }
 
-    /// A painter of the stages fitted so far at the photo's size.
+    /// A painter of the stages fitted so far, one photo pixel per pixel.
     pub fn painter(&self) -> TilePainter {
         let mut painter = TilePainter::new(self.net.clone());
         painter.lod = (self.stage + 1).min(self.net.stages()) as f32;
         painter
     }
 
-    /// Sets `config.iterations` (steps per stage, the same for each) from a time budget, by
-    /// timing two steps of every stage. Called before the first step of a new fit.
+    /// Sets `config.iterations` from a time budget, by timing two steps of every stage: the
+    /// last stage gets `N` steps and each lower stage `N / 4` ([`FitConfig::stage_steps`]).
+    /// Called before the first step of a new fit.
     pub fn plan(&mut self, budget: Duration) {
         let start = Instant::now();
         self.ensure_target();
+        let stages = self.net.stages();
         let mut per_step = 0.0;
-        for s in 0..self.net.stages() {
+        for s in 0..stages {
             let t = Instant::now();
             for i in 0..2 {
                 let _ = self.loss_and_gradient(s, i);
             }
-            per_step += t.elapsed().as_secs_f64() / 2.0;
+            let share = if s + 1 == stages { 1.0 } else { 0.25 };
+            per_step += share * t.elapsed().as_secs_f64() / 2.0;
         }
         let left = budget.as_secs_f64() * (1.0 - BUDGET_RESERVE) - start.elapsed().as_secs_f64();
         let steps = (left / per_step).max(10.0) as u64;
-        self.config.iterations = vec![steps; self.net.stages()];
+        self.config.iterations = FitConfig::stage_steps(steps, stages);
     }
 
     /// The steps of the current stage.
@@ -328,7 +334,7 @@ impl Fitter {
             }
             (values, tangents)
         });
-        let lambda = seam_mask(h, w, self.config.seam_band);
+        let lambda = seam_mask(h, w, self.config.seam_band_for([h, w]));
         let below = below.as_ref().map(|(v, t)| (v.as_slice(), t.as_slice()));
         self.target = Some(StageTarget::new(
             &level,

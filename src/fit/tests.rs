@@ -32,10 +32,16 @@ fn stage(net: &PeriodicNet) -> Stage<'_> {
 fn batch() -> OwnedBatch {
     let mut b = OwnedBatch::default();
     for i in 0..300u64 {
-        let r = |k: u64| (crate::latent::derive_seed(77, &[i, k]) >> 40) as f32 / (1u64 << 24) as f32;
+        let r =
+            |k: u64| (crate::latent::derive_seed(77, &[i, k]) >> 40) as f32 / (1u64 << 24) as f32;
         b.positions.extend([r(0) * 20.0, r(1) * 16.0]);
         b.values.extend([r(2) - 0.5, r(3) - 0.5]);
-        b.gradients.extend([r(4) * 0.2 - 0.1, r(5) * 0.2 - 0.1, r(6) * 0.2 - 0.1, r(7) * 0.2 - 0.1]);
+        b.gradients.extend([
+            r(4) * 0.2 - 0.1,
+            r(5) * 0.2 - 0.1,
+            r(6) * 0.2 - 0.1,
+            r(7) * 0.2 - 0.1,
+        ]);
         let l = if i < 120 { r(8) } else { 0.0 };
         b.value_weight.push(1.0 - l);
         b.gradient_weight.push(l);
@@ -76,7 +82,10 @@ fn tangents_match_finite_differences() {
         }
     }
     let err = relative(&tangents, &numeric);
-    assert!(err < 2e-3, "tangents differ from finite differences by {err} (relative)");
+    assert!(
+        err < 2e-3,
+        "tangents differ from finite differences by {err} (relative)"
+    );
     // The burn forward computes the same tangents.
     let (v, t) = reference::eval(&stage, &b.positions, &Device::flex());
     assert!(relative(&v, &values) < 1e-5 && relative(&t, &tangents) < 1e-5);
@@ -106,7 +115,10 @@ fn autodiff_weight_gradient_matches_finite_differences() {
         numeric.push(((plus - minus) / (2.0 * h as f64)) as f32);
     }
     let err = relative(&analytic, &numeric);
-    assert!(err < 1e-2, "d(loss)/dW differs from finite differences by {err} (relative)");
+    assert!(
+        err < 1e-2,
+        "d(loss)/dW differs from finite differences by {err} (relative)"
+    );
 }
 
 #[test]
@@ -118,7 +130,10 @@ fn fused_backward_matches_autodiff() {
         reference::loss_and_gradient(&stage(&net), &b.view(), &Device::flex());
     assert!((loss - reference_loss).abs() <= 1e-4 * reference_loss.abs());
     let err = relative(&fused, &autodiff);
-    assert!(err < 1e-4, "fused gradient differs from autodiff by {err} (relative)");
+    assert!(
+        err < 1e-4,
+        "fused gradient differs from autodiff by {err} (relative)"
+    );
 }
 
 #[test]
@@ -128,5 +143,8 @@ fn the_network_is_exactly_periodic() {
     let p = [3.25f32, 7.5, 3.25 + 20.0, 7.5 + 16.0 * 3.0];
     let mut v = vec![0f32; 4];
     stage.eval(&p, &mut v, None);
-    assert!((v[0] - v[2]).abs() < 1e-4 && (v[1] - v[3]).abs() < 1e-4, "{v:?}");
+    assert!(
+        (v[0] - v[2]).abs() < 1e-4 && (v[1] - v[3]).abs() < 1e-4,
+        "{v:?}"
+    );
 }
