@@ -191,7 +191,7 @@ fn eval_tile(
     }
     eprintln!("model: {description} (a periodic tile from ipfn fit)");
     println!(
-        "PSNR           {whole:.2} dB against {} ({interior:.2} dB inside the seam band)",
+        "PSNR           {whole:.2} dB against {} ({interior:.2} dB in the interior, outside the seam band)",
         photo_path.display()
     );
     println!(

@@ -49,9 +49,9 @@ pub struct FitConfig {
     /// picks a sixteenth of the shorter side (32 for 512 pixels: the hidden sine layers add
     /// harmonics above it). At most half the shorter side (Nyquist).
     pub band_limit: usize,
-    /// Stages from low to high frequencies (levels of detail); stage `s` of `S` holds
-    /// frequencies up to `band_limit / 2^(S-1-s)` and fits what the stages below left of the
-    /// photo blurred to that band (so each stage may also correct lower frequencies).
+    /// Stages from low to high frequencies (levels of detail, as a mip-map's): stage `s` of
+    /// `S` holds first-layer frequencies up to `band_limit / 2^(S-1-s)` and fits what the
+    /// stages below left of the photo filtered for `1 / 2^(S-1-s)` of its resolution.
     pub stages: usize,
     /// First-layer frequencies of the last stage (lower stages: a quarter, at least 16).
     pub frequencies: usize,
@@ -221,15 +221,17 @@ impl FitConfig {
         }
     }
 
-    /// Stage `stage`'s level of the photo: blurred so its frequencies stay near the stage's
-    /// band (a Gaussian that halves `upper` cycles per period); the last stage's is the photo.
+    /// Stage `stage`'s level of the photo, as a mip-map's: the last stage's is the photo, the
+    /// one below it the photo filtered for half the resolution, then a quarter, and so on
+    /// (a Gaussian of `0.38 * 2^j` pixels for `j` halvings, which halves the response at the
+    /// halved resolution's Nyquist frequency).
     pub fn level(&self, photo: &Exemplar, stage: usize) -> Exemplar {
-        if stage + 1 >= self.stages {
+        let halvings = self.stages.saturating_sub(stage + 1) as i32;
+        if halvings == 0 {
             return photo.clone();
         }
-        let period = self.period_for([photo.height, photo.width]);
-        let upper = (self.band(period) >> (self.stages - 1 - stage)).max(1) as f32;
-        target::blur(photo, period.map(|p| 0.19 * p as f32 / upper))
+        let sigma = 0.38 * 2f32.powi(halvings);
+        target::blur(photo, [sigma, sigma])
     }
 }
 
