@@ -300,20 +300,29 @@ fn burn_devices_fit_what_the_cpu_fits() {
 #[test]
 fn a_map_set_fits_as_one_network() {
     let dir = tempfile::tempdir().unwrap();
-    let out = ipfn(dir.path(), &["draw", "material", "--size", "96", "--out", "mat"]);
+    let out = ipfn(
+        dir.path(),
+        &["draw", "material", "--size", "96", "--out", "mat"],
+    );
     assert!(out.status.success(), "{}", stderr(&out));
     let maps = "mat/albedo.png,mat/normal.png,mat/roughness.png,mat/height.png";
     let mut args = vec!["fit", "--maps", maps, "--iterations", "20", "--run", "run"];
     args.extend_from_slice(SMALL);
     let out = ipfn(dir.path(), &args);
     assert!(out.status.success(), "{}", stderr(&out));
-    let args = ["synth", "--model", "run", "--size", "48", "--out", "s.png", "--quiet"];
+    let args = [
+        "synth", "--model", "run", "--size", "48", "--out", "s.png", "--quiet",
+    ];
     let out = ipfn(dir.path(), &args);
     assert!(out.status.success(), "{}", stderr(&out));
     for map in ["albedo", "normal", "roughness", "height"] {
         for file in [format!("run/tile-{map}.png"), format!("s-{map}.png")] {
             let image = image::open(dir.path().join(&file)).unwrap();
-            assert_eq!(image.color().bits_per_pixel() % 16, 0, "{file} is not 16-bit");
+            assert_eq!(
+                image.color().bits_per_pixel() % 16,
+                0,
+                "{file} is not 16-bit"
+            );
         }
     }
     let size = image::image_dimensions(dir.path().join("s-albedo.png")).unwrap();

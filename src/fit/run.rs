@@ -275,7 +275,7 @@ impl Fitter {
         painter
     }
 
-    /// Sets `config.iterations` from a time budget, by timing two steps of every stage: the
+    /// Sets `config.iterations` from a time budget, by timing two steps of every stage (after one to warm up): the
     /// last stage gets `N` steps and each lower stage `N / 4` ([`FitConfig::stage_steps`]).
     /// Called before the first step of a new fit.
     pub fn plan(&mut self, budget: Duration) {
@@ -284,8 +284,9 @@ impl Fitter {
         let stages = self.net.stages();
         let mut per_step = 0.0;
         for s in 0..stages {
+            let _ = self.loss_and_gradient(s, 0); // warms the allocator and caches
             let t = Instant::now();
-            for i in 0..2 {
+            for i in 1..3 {
                 let _ = self.loss_and_gradient(s, i);
             }
             let share = if s + 1 == stages { 1.0 } else { 0.25 };
@@ -441,7 +442,7 @@ impl Fitter {
         let Some(loss) = loss else {
             return Ok(f64::NAN);
         };
-        let (h, w, c) = (self.photo.height, self.photo.width, c_of(&self.photo));
+        let (h, w, c) = (self.photo.height, self.photo.width, self.photo.channels);
         let tile = self.painter().render([0, 0], [h, w]);
         let score = psnr(&tile, &self.photo.values, c, |i| {
             self.mask.as_ref().is_none_or(|m| m[i] > 0.5)
@@ -458,18 +459,14 @@ impl Fitter {
         } else {
             ""
         };
-        write!(
+        writeln!(
             file,
-            "{header}{},{},{loss:.6e},{score:.3}\n",
+            "{header}{},{},{loss:.6e},{score:.3}",
             self.stage, self.iteration
         )
         .map_err(|e| Error::Runtime(format!("{}: cannot write: {e}", path.display())))?;
         Ok(score)
     }
-}
-
-fn c_of(photo: &Exemplar) -> usize {
-    photo.channels
 }
 
 /// Values and tangents of a stage at `positions`, in parallel chunks on the CPU.
