@@ -322,11 +322,15 @@ fn write_outputs(
     let kept = |i: usize| fitter.mask().is_none_or(|m| m[i] > 0.5);
     let whole = crate::fit::psnr(&tile, &photo.values, c, kept);
     let interior = crate::fit::psnr(&tile, &photo.values, c, |i| kept(i) && lambda[i] == 0.0);
-    let one: Vec<f32> = painter
-        .render([0, 0], period)
-        .iter()
-        .map(|v| v.clamp(-1.0, 1.0))
-        .collect();
+    let one: Vec<f32> = if period == [h, w] {
+        tile.iter().map(|v| v.clamp(-1.0, 1.0)).collect()
+    } else {
+        painter
+            .render([0, 0], period)
+            .iter()
+            .map(|v| v.clamp(-1.0, 1.0))
+            .collect()
+    };
     let seam = crate::metrics::seam_score(&one, period[0], period[1], c)?;
     let written: Vec<String> = outputs
         .iter()

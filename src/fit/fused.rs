@@ -17,6 +17,7 @@
 use rayon::prelude::*;
 
 use super::network::{StageShape, angular, view};
+use crate::generator::fused::matmul_strided as product;
 
 /// Points per chunk: a chunk's activations stay in cache.
 pub const CHUNK: usize = 128;
@@ -64,54 +65,6 @@ pub struct Batch<'a> {
     pub gradients: &'a [f32],
     pub value_weight: &'a [f32],
     pub gradient_weight: &'a [f32],
-}
-
-/// `dst[m, n] (+)= lhs[m, k] · rhs[k, n]` where `lhs` and `rhs` are read at the given
-/// `(row, column)` strides (so either may be a transposed row-major matrix).
-#[allow(clippy::too_many_arguments)]
-fn product(
-    dst: &mut [f32],
-    (m, n, k): (usize, usize, usize),
-    lhs: &[f32],
-    (lhs_rs, lhs_cs): (usize, usize),
-    rhs: &[f32],
-    (rhs_rs, rhs_cs): (usize, usize),
-    accumulate: bool,
-) {
-    let last = |rows: usize, cols: usize, rs: usize, cs: usize| (rows - 1) * rs + (cols - 1) * cs;
-    if m == 0 || n == 0 || k == 0 {
-        return;
-    }
-    assert!(
-        dst.len() >= m * n
-            && lhs.len() > last(m, k, lhs_rs, lhs_cs)
-            && rhs.len() > last(k, n, rhs_rs, rhs_cs),
-        "product: buffers smaller than {m}x{k} . {k}x{n}"
-    );
-    // SAFETY: the assert bounds every access at the strides given; `dst` is a unique borrow.
-    unsafe {
-        gemm::gemm(
-            m,
-            n,
-            k,
-            dst.as_mut_ptr(),
-            1,
-            n as isize,
-            accumulate,
-            lhs.as_ptr(),
-            lhs_cs as isize,
-            lhs_rs as isize,
-            rhs.as_ptr(),
-            rhs_cs as isize,
-            rhs_rs as isize,
-            1.0,
-            1.0,
-            false,
-            false,
-            false,
-            gemm::Parallelism::None,
-        );
-    }
 }
 
 /// The activations of one chunk, kept for the backward pass.

@@ -17,12 +17,35 @@ pub const CHUNK_POINTS: usize = 512;
 /// the one matrix product of the CPU paths (the fused generator, the SIFID stem, the GEMM
 /// floor of the benches).
 pub fn matmul_into(dst: &mut [f32], lhs: &[f32], rhs: &[f32], m: usize, n: usize, k: usize) {
+    matmul_strided(dst, (m, n, k), lhs, (k, 1), rhs, (n, 1), false);
+}
+
+/// `dst[m, n] (+)= lhs[m, k] · rhs[k, n]` on the calling thread, `dst` row-major, `lhs` and
+/// `rhs` read at the given `(row, column)` strides (so either may be a transposed row-major
+/// matrix); with `accumulate` the product is added to `dst`. `ipfn fit`'s backward uses the
+/// strides and the accumulation.
+#[allow(clippy::too_many_arguments)]
+pub fn matmul_strided(
+    dst: &mut [f32],
+    (m, n, k): (usize, usize, usize),
+    lhs: &[f32],
+    (lhs_rs, lhs_cs): (usize, usize),
+    rhs: &[f32],
+    (rhs_rs, rhs_cs): (usize, usize),
+    accumulate: bool,
+) {
+    if m == 0 || n == 0 || k == 0 {
+        return;
+    }
+    let last = |rows: usize, cols: usize, rs: usize, cs: usize| (rows - 1) * rs + (cols - 1) * cs;
     assert!(
-        dst.len() >= m * n && lhs.len() >= m * k && rhs.len() >= k * n,
-        "matmul_into: buffers smaller than {m}x{k} . {k}x{n}"
+        dst.len() >= m * n
+            && lhs.len() > last(m, k, lhs_rs, lhs_cs)
+            && rhs.len() > last(k, n, rhs_rs, rhs_cs),
+        "matmul: buffers smaller than {m}x{k} . {k}x{n}"
     );
-    // SAFETY: the assert bounds every access at the strides given (row-major); `dst` is a
-    // unique borrow, so it aliases neither input.
+    // SAFETY: the assert bounds every access at the strides given; `dst` is a unique borrow,
+    // so it aliases neither input.
     unsafe {
         gemm::gemm(
             m,
@@ -31,14 +54,14 @@ pub fn matmul_into(dst: &mut [f32], lhs: &[f32], rhs: &[f32], m: usize, n: usize
             dst.as_mut_ptr(),
             1,
             n as isize,
-            false,
+            accumulate,
             lhs.as_ptr(),
-            1,
-            k as isize,
+            lhs_cs as isize,
+            lhs_rs as isize,
             rhs.as_ptr(),
-            1,
-            n as isize,
-            0.0,
+            rhs_cs as isize,
+            rhs_rs as isize,
+            1.0,
             1.0,
             false,
             false,
