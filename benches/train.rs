@@ -24,12 +24,22 @@ fn time_iteration(
     runs: usize,
 ) -> (f64, ipfn::train::StepTimes) {
     let dir = tempfile::tempdir().unwrap();
+    let base = match std::env::var("IPFN_BENCH_CONFIG") {
+        Ok(path) => {
+            TrainConfig::from_file(std::path::Path::new(&path))
+                .unwrap()
+                .0
+        }
+        Err(_) => TrainConfig {
+            batch: 4,
+            crop: 128,
+            ..TrainConfig::default()
+        },
+    };
     let config = TrainConfig {
-        batch: 4,
-        crop: 128,
         critic_steps,
         generator_steps,
-        ..TrainConfig::default()
+        ..base
     };
     let mut trainer = Trainer::new(config, exemplar, dir.path(), &Device::flex()).unwrap();
     trainer.step(); // warm-up

@@ -391,6 +391,76 @@ fn fused_and_burn_fake_crops_agree() {
     assert!(diff < 1e-5, "fused and burn fakes differ by {diff}");
 }
 
+/// On the CPU, steps are fused (the critic's loss and penalty, the generator's backward, by
+/// hand); on a GPU they go through burn's autodiff. Both are the same update: from the same
+/// start, a few iterations of each end at the same weights, up to float rounding.
+#[test]
+fn fused_steps_follow_the_framework() {
+    let dir = common::tiny_run_folder();
+    let config = TrainConfig {
+        batch: 3,
+        crop: 16,
+        critic_widths: vec![4, 8, 8, 8],
+        hidden_layers: 2,
+        width: 16,
+        lr: 1e-3,
+        ..TrainConfig::default()
+    };
+    let device = Device::flex();
+    let trainer = |framework: bool| {
+        let run = dir
+            .path()
+            .join(if framework { "framework" } else { "fused" });
+        let t = Trainer::new(config.clone(), dir.path().join("ex.png"), &run, &device).unwrap();
+        if framework { t.framework_steps() } else { t }
+    };
+    let (mut fused, mut framework) = (trainer(false), trainer(true));
+    for _ in 0..3 {
+        let (a, b) = (fused.step(), framework.step());
+        let close = |x: f32, y: f32| (x - y).abs() <= 1e-3 * y.abs().max(1.0);
+        assert!(
+            close(a.wasserstein, b.wasserstein),
+            "W {} vs {}",
+            a.wasserstein,
+            b.wasserstein
+        );
+        assert!(
+            close(a.penalty, b.penalty),
+            "penalty {} vs {}",
+            a.penalty,
+            b.penalty
+        );
+        assert!(
+            close(a.generator_loss, b.generator_loss),
+            "G {} vs {}",
+            a.generator_loss,
+            b.generator_loss
+        );
+    }
+    let (a, b) = (fused.model().1, framework.model().1);
+    assert_ne!(a.k, vec![1.0, 1.0], "K moved");
+    assert!(
+        common::max_abs_diff(&a.k, &b.k) < 1e-4,
+        "K {:?} vs {:?}",
+        a.k,
+        b.k
+    );
+    for (l, (x, y)) in a.layers.iter().zip(&b.layers).enumerate() {
+        let diff = common::max_abs_diff(&x.weight, &y.weight);
+        assert!(diff < 1e-4, "generator layer {l} differs by {diff}");
+    }
+    let critic = |t: &Trainer| {
+        let mut c = Checkpoint::new();
+        ipfn::checkpoint::write_module(&t.critic().valid(), "c", &mut c);
+        c.tensors
+            .into_values()
+            .flat_map(|t| t.values)
+            .collect::<Vec<f32>>()
+    };
+    let diff = common::max_abs_diff(&critic(&fused), &critic(&framework));
+    assert!(diff < 1e-4, "critics differ by {diff}");
+}
+
 #[test]
 fn resize_keeps_every_channel() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("exemplars/honeycomb.png");

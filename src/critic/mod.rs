@@ -23,6 +23,7 @@ use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 
 use crate::input_error;
 
+pub mod fused;
 #[cfg(test)]
 mod tests;
 

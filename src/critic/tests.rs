@@ -270,3 +270,84 @@ fn a_2d_critic_reads_weights_stored_without_the_depth_axis() {
         b.try_into_vec_as::<f32>().unwrap()
     );
 }
+
+/// The fused CPU step's loss and gradients equal burn's autodiff of the framework critic's
+/// WGAN-GP loss (scores and exact penalty), for every parameter.
+fn fused_step_matches_autodiff(case: Case) {
+    let device = Device::flex().autodiff();
+    let critic = case.critic(&device);
+    let (real, fake) = (case.input(2, &device), case.input(3, &device));
+    let alphas = vec![0.3f32, 0.8];
+    let alpha = Tensor::<1>::from_data(TensorData::new(alphas.clone(), [2]), &device);
+    let weights = critic.weights();
+    let d_real = critic.score(&weights, real.clone()).mean();
+    let d_fake = critic.score(&weights, fake.clone()).mean();
+    let penalty = critic.gradient_penalty(&weights, real.clone(), fake.clone(), alpha, 10.0);
+    let loss = d_fake.clone() - d_real.clone() + penalty.clone();
+    let expected_w = (d_real - d_fake).into_scalar::<f32>();
+    let expected_p = penalty.into_scalar::<f32>();
+    let grads = loss.backward();
+
+    let host = |t: Tensor<5>| t.try_into_vec_as::<f32>().unwrap();
+    let shape = case.shape();
+    let fused = fused::FusedCritic::new(&critic, case.channels, [shape[2], shape[3], shape[4]]);
+    let step = fused.step(&host(real), &host(fake), &alphas, shape, 10.0);
+    assert!((step.wasserstein - expected_w).abs() < 1e-4 * expected_w.abs().max(1.0));
+    assert!((step.penalty - expected_p).abs() < 1e-4 * expected_p.abs().max(1.0));
+    let close = |name: &str, got: &[f32], want: Vec<f32>| {
+        let scale = want.iter().fold(0f32, |m, v| m.max(v.abs())).max(1e-6);
+        let worst = got
+            .iter()
+            .zip(&want)
+            .fold(0f32, |m, (g, w)| m.max((g - w).abs()));
+        eprintln!("{}D {name}: worst {:e} of {scale:e}", case.axes, worst);
+        assert_eq!(got.len(), want.len(), "{name}: length");
+        assert!(
+            worst < 1e-4 * scale,
+            "{name}: fused differs by {worst} (scale {scale})"
+        );
+    };
+    for (i, (conv, (w, b))) in critic.convs.iter().zip(&step.convs).enumerate() {
+        let gw = conv.weight.val().grad(&grads).unwrap();
+        close(
+            &format!("conv {i} weight"),
+            w,
+            gw.try_into_vec_as::<f32>().unwrap(),
+        );
+        let gb = conv.bias.as_ref().unwrap().val().grad(&grads).unwrap();
+        close(
+            &format!("conv {i} bias"),
+            b,
+            gb.try_into_vec_as::<f32>().unwrap(),
+        );
+    }
+    let gh = critic.head.weight.val().grad(&grads).unwrap();
+    close(
+        "head weight",
+        &step.head.0,
+        gh.try_into_vec_as::<f32>().unwrap(),
+    );
+    let ghb = critic
+        .head
+        .bias
+        .as_ref()
+        .unwrap()
+        .val()
+        .grad(&grads)
+        .unwrap();
+    close(
+        "head bias",
+        &[step.head.1],
+        ghb.try_into_vec_as::<f32>().unwrap(),
+    );
+}
+
+#[test]
+fn fused_step_matches_autodiff_2d() {
+    fused_step_matches_autodiff(image_case());
+}
+
+#[test]
+fn fused_step_matches_autodiff_3d() {
+    fused_step_matches_autodiff(volume_case());
+}

@@ -27,12 +27,45 @@ pub fn matmul_into(dst: &mut [f32], lhs: &[f32], rhs: &[f32], m: usize, n: usize
 #[allow(clippy::too_many_arguments)]
 pub fn matmul_strided(
     dst: &mut [f32],
-    (m, n, k): (usize, usize, usize),
+    shape: (usize, usize, usize),
     lhs: &[f32],
-    (lhs_rs, lhs_cs): (usize, usize),
+    lhs_strides: (usize, usize),
     rhs: &[f32],
-    (rhs_rs, rhs_cs): (usize, usize),
+    rhs_strides: (usize, usize),
     accumulate: bool,
+) {
+    let parallelism = gemm::Parallelism::None;
+    let (lhs, rhs) = ((lhs, lhs_strides), (rhs, rhs_strides));
+    matmul_threads(dst, shape, lhs, rhs, accumulate, parallelism);
+}
+
+/// [`matmul_strided`] on rayon's pool: `gemm` splits the output's rows and columns between
+/// threads, never the sum over `k`, so the result does not depend on the thread count. For
+/// products too large for one core (the fused critic's).
+pub fn matmul_parallel(
+    dst: &mut [f32],
+    shape: (usize, usize, usize),
+    lhs: (&[f32], (usize, usize)),
+    rhs: (&[f32], (usize, usize)),
+    accumulate: bool,
+) {
+    matmul_threads(
+        dst,
+        shape,
+        lhs,
+        rhs,
+        accumulate,
+        gemm::Parallelism::Rayon(0),
+    );
+}
+
+fn matmul_threads(
+    dst: &mut [f32],
+    (m, n, k): (usize, usize, usize),
+    (lhs, (lhs_rs, lhs_cs)): (&[f32], (usize, usize)),
+    (rhs, (rhs_rs, rhs_cs)): (&[f32], (usize, usize)),
+    accumulate: bool,
+    parallelism: gemm::Parallelism,
 ) {
     if m == 0 || n == 0 || k == 0 {
         return;
@@ -66,7 +99,7 @@ pub fn matmul_strided(
             false,
             false,
             false,
-            gemm::Parallelism::None,
+            parallelism,
         );
     }
 }
@@ -113,11 +146,6 @@ impl FusedGenerator {
         let w = &self.weights;
         let dims = w.k.len();
         let n = p.len() / dims;
-        let enc = w.octaves * 2 * dims;
-        let guided = !guide.is_empty();
-        let input = enc + field.latent_dim() + guided as usize;
-        debug_assert_eq!(w.layers[0].inputs, input);
-        debug_assert!(!guided || guide.len() == n);
         let widest = w
             .layers
             .iter()
@@ -126,28 +154,16 @@ impl FusedGenerator {
             .unwrap_or(0);
         scratch.a.resize(n * widest, 0.0);
         scratch.b.resize(n * widest, 0.0);
-        scratch.u.resize(n * dims, 0.0);
 
-        // Input rows: [encoding(p / K), latent(p * latent_scale)]  -> [n, input]
-        for (i, point) in p.chunks_exact(dims).enumerate() {
-            let row = &mut scratch.a[i * input..(i + 1) * input];
-            encode_into(point, &w.k, w.octaves, &mut row[..enc]);
-            for d in 0..dims {
-                scratch.u[i * dims + d] = point[d] * latent_scale[d];
-            }
-        }
-        {
-            let ld = field.latent_dim();
-            let rows = scratch.a[..n * input].chunks_exact_mut(input);
-            for (i, (u, row)) in scratch.u.chunks_exact(dims).zip(rows).enumerate() {
-                let row = &mut row[enc..];
-                field.at(u, &mut row[..ld]);
-                if guided {
-                    row[ld] = guide[i];
-                }
-            }
-        }
-
+        input_rows(
+            w,
+            p,
+            field,
+            latent_scale,
+            guide,
+            &mut scratch.a,
+            &mut scratch.u,
+        );
         let (mut src, mut dst) = (&mut scratch.a, &mut scratch.b);
         let last = w.layers.len() - 1;
         for (l, layer) in w.layers.iter().enumerate() {
@@ -168,6 +184,43 @@ impl FusedGenerator {
                 }
             }
             std::mem::swap(&mut src, &mut dst);
+        }
+    }
+}
+
+/// The MLP's input rows at `n` points: `[encoding(p / K), latent(p * latent_scale), guide]`,
+/// written to `rows` `[n, input]` (`u` is working memory).
+pub(crate) fn input_rows(
+    w: &GeneratorWeights,
+    p: &[f32],
+    field: &LatentField,
+    latent_scale: &[f32],
+    guide: &[f32],
+    rows: &mut [f32],
+    u: &mut Vec<f32>,
+) {
+    let dims = w.k.len();
+    let n = p.len() / dims;
+    let enc = w.octaves * 2 * dims;
+    let guided = !guide.is_empty();
+    let input = enc + field.latent_dim() + guided as usize;
+    debug_assert_eq!(w.layers[0].inputs, input);
+    debug_assert!(!guided || guide.len() == n);
+    u.resize(n * dims, 0.0);
+    for (i, point) in p.chunks_exact(dims).enumerate() {
+        let row = &mut rows[i * input..(i + 1) * input];
+        encode_into(point, &w.k, w.octaves, &mut row[..enc]);
+        for d in 0..dims {
+            u[i * dims + d] = point[d] * latent_scale[d];
+        }
+    }
+    let ld = field.latent_dim();
+    let rows = rows[..n * input].chunks_exact_mut(input);
+    for (i, (u, row)) in u.chunks_exact(dims).zip(rows).enumerate() {
+        let row = &mut row[enc..];
+        field.at(u, &mut row[..ld]);
+        if guided {
+            row[ld] = guide[i];
         }
     }
 }

@@ -10,6 +10,7 @@
 //! - [`fused::FusedGenerator`], a fused CPU loop for fast synthesis.
 //! - [`kernel::KernelGenerator`], one CubeCL kernel for fast synthesis on GPUs (wgpu, CUDA).
 
+pub mod backward;
 pub mod fused;
 pub mod import;
 pub use import::import_pytorch;
@@ -316,19 +317,25 @@ impl GeneratorWeights {
 
     /// Stores config and weights under the `generator.*` names.
     pub fn write_to(&self, config: &GeneratorConfig, checkpoint: &mut Checkpoint) {
+        self.write_named("generator", config, checkpoint);
+    }
+
+    /// Stores config and weights under the `PREFIX.*` names (a training state holds the
+    /// trained weights beside the averaged ones that `generator.*` names).
+    pub fn write_named(&self, prefix: &str, config: &GeneratorConfig, checkpoint: &mut Checkpoint) {
         checkpoint.metadata.insert(
             CONFIG_KEY.into(),
             serde_json::to_string(config).expect("config serialises"),
         );
-        checkpoint.insert("generator.k", vec![self.k.len()], self.k.clone());
+        checkpoint.insert(format!("{prefix}.k"), vec![self.k.len()], self.k.clone());
         for (i, l) in self.layers.iter().enumerate() {
             checkpoint.insert(
-                format!("generator.layers.{i}.weight"),
+                format!("{prefix}.layers.{i}.weight"),
                 vec![l.inputs, l.outputs],
                 l.weight.clone(),
             );
             checkpoint.insert(
-                format!("generator.layers.{i}.bias"),
+                format!("{prefix}.layers.{i}.bias"),
                 vec![l.outputs],
                 l.bias.clone(),
             );
@@ -337,6 +344,14 @@ impl GeneratorWeights {
 
     /// Reads config and weights, checking every tensor against the config's shapes.
     pub fn read_from(checkpoint: &Checkpoint) -> crate::Result<(GeneratorConfig, Self)> {
+        Self::read_named("generator", checkpoint)
+    }
+
+    /// [`GeneratorWeights::read_from`] for the weights stored under `PREFIX.*`.
+    pub fn read_named(
+        prefix: &str,
+        checkpoint: &Checkpoint,
+    ) -> crate::Result<(GeneratorConfig, Self)> {
         let path = checkpoint.source.display();
         let unreadable =
             |e: serde_json::Error| input_error!("{path}: unreadable generator config: {e}");
@@ -350,21 +365,23 @@ impl GeneratorWeights {
         }
         let config: GeneratorConfig = serde_json::from_value(json).map_err(unreadable)?;
         config.validate().map_err(|e| input_error!("{path}: {e}"))?;
-        let k = checkpoint.tensor("generator.k", &[config.dims])?.to_vec();
+        let k = checkpoint
+            .tensor(&format!("{prefix}.k"), &[config.dims])?
+            .to_vec();
         let mut layers = Vec::new();
         for (i, (inputs, outputs)) in config.layer_shapes().into_iter().enumerate() {
             layers.push(LayerWeights {
                 inputs,
                 outputs,
                 weight: checkpoint
-                    .tensor(&format!("generator.layers.{i}.weight"), &[inputs, outputs])?
+                    .tensor(&format!("{prefix}.layers.{i}.weight"), &[inputs, outputs])?
                     .to_vec(),
                 bias: checkpoint
-                    .tensor(&format!("generator.layers.{i}.bias"), &[outputs])?
+                    .tensor(&format!("{prefix}.layers.{i}.bias"), &[outputs])?
                     .to_vec(),
             });
         }
-        let extra = format!("generator.layers.{}.weight", config.hidden_layers + 1);
+        let extra = format!("{prefix}.layers.{}.weight", config.hidden_layers + 1);
         if checkpoint.tensors.contains_key(&extra) {
             return Err(input_error!(
                 "{path}: has more layers than its config says: the checkpoint is for another model shape"

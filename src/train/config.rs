@@ -88,6 +88,14 @@ pub struct TrainConfig {
     /// Samples scored (SIFID against the exemplar, at its size) at each checkpoint of an image
     /// run; the best-scoring generator is kept as `best.ipfn`. 0: no scoring.
     pub score_samples: usize,
+    /// Decay per iteration of the moving average of the generator's weights that the run
+    /// scores, saves and paints ([`super::average`]); 0 paints the trained weights themselves.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub average: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 fn is_default_sdf_scale(v: &f32) -> bool {
@@ -131,6 +139,7 @@ impl Default for TrainConfig {
             gray: false,
             time: None,
             score_samples: 2,
+            average: 0.0,
         }
     }
 }
@@ -335,6 +344,12 @@ impl TrainConfig {
                 "lr and resize must be positive, gp_lambda and shift not negative, and all finite"
             ));
         }
+        if !(0.0..1.0).contains(&self.average) {
+            return Err(input_error!(
+                "average = {}: the moving average's decay is at least 0 (off) and below 1, e.g. 0.99",
+                self.average
+            ));
+        }
         self.check_sizes(kind)?;
         self.time_budget()?;
         if let Some(k) = &self.k_init
@@ -514,6 +529,9 @@ overrides! {
     preview_every: u64, resumable;
     /// Plain log line every N iterations (when stderr is not a terminal).
     log_every: u64, resumable;
+    /// Decay per iteration of the moving average of the generator's weights that is scored,
+    /// saved and painted, e.g. 0.99; 0 paints the trained weights.
+    average: f64, fixed;
     /// Generator: encoding octaves.
     octaves: usize, fixed;
     /// Generator: latent channels.

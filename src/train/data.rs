@@ -177,6 +177,17 @@ impl Trainer {
         self.config.crop.pow(self.kind.crop_axes() as u32)
     }
 
+    /// A crop's spatial shape as the critic takes it: `[depth, crop, crop]`, depth 1 in 2D.
+    pub(super) fn crop_shape(&self) -> [usize; 3] {
+        let s = self.config.crop;
+        [if self.kind.crop_axes() == 3 { s } else { 1 }, s, s]
+    }
+
+    /// The critic's input channels: the exemplar's, and one for a condition.
+    pub(super) fn critic_channels(&self) -> usize {
+        self.exemplar.channels + self.kind.conditioned() as usize
+    }
+
     /// The condition slice `[points]` of the crop at `origin`: guidance over the exemplar, or
     /// the crop's density at every point; empty for an unconditioned run.
     pub(super) fn crop_condition(&self, origin: &[usize]) -> Vec<f32> {

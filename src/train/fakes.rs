@@ -217,46 +217,74 @@ impl Trainer {
     /// # Shapes
     /// - output: `[batch, channels (+ 1), depth, crop, crop]` on the training device
     pub fn fake_batch_fused(&self, generator: &FusedGenerator, counters: &[u64]) -> Tensor<5> {
+        let samples = self.fake_samples(counters);
+        let (planar, shape) = self.paint_fused(generator, &samples);
+        Tensor::from_data(TensorData::new(planar, shape), &self.device)
+    }
+
+    /// Each generated sample's coordinates `[points, axes]`, latent field and condition (empty
+    /// for an unconditioned run), as [`Trainer::fake_batch`] draws them.
+    pub(super) fn fake_samples(&self, counters: &[u64]) -> Vec<FakeSample> {
+        (0..self.config.batch)
+            .into_par_iter()
+            .map(|i| {
+                let (p, field) = self.sample_coordinates(i, counters);
+                FakeSample {
+                    p,
+                    field,
+                    condition: self.fake_condition(i, counters),
+                }
+            })
+            .collect()
+    }
+
+    /// `samples` painted by the fused CPU engine, with their conditions as one more channel,
+    /// and the batch's shape `[batch, channels (+ 1), depth, crop, crop]`.
+    pub(super) fn paint_fused(
+        &self,
+        generator: &FusedGenerator,
+        samples: &[FakeSample],
+    ) -> (Vec<f32>, [usize; 5]) {
         let cfg = &self.config;
         let (b, s, c) = (cfg.batch, cfg.crop, self.exemplar.channels);
         let cg = c + self.kind.conditioned() as usize;
         let (n, dims) = (self.crop_points(), self.kind.generator_axes());
-        let samples: Vec<(Vec<f32>, LatentField, Vec<f32>)> = (0..b)
-            .into_par_iter()
-            .map(|i| {
-                let (p, field) = self.sample_coordinates(i, counters);
-                (p, field, self.fake_condition(i, counters))
-            })
-            .collect();
         let mut points = vec![0f32; b * n * c]; // [b, n, c]
         crate::synth::paint_fused(
             generator,
-            |i| &samples[i].1,
+            |i| &samples[i].field,
             &vec![cfg.latent_scale; dims],
             c,
             &mut points,
             n,
             CHUNK_POINTS,
             |i, start, count, coords, condition| {
-                let (p, _, g) = &samples[i];
+                let sample = &samples[i];
                 coords.clear();
-                coords.extend_from_slice(&p[start * dims..(start + count) * dims]);
+                coords.extend_from_slice(&sample.p[start * dims..(start + count) * dims]);
                 condition.clear();
-                if !g.is_empty() {
-                    condition.extend_from_slice(&g[start..start + count]);
+                if !sample.condition.is_empty() {
+                    condition.extend_from_slice(&sample.condition[start..start + count]);
                 }
             },
         );
         let mut planar = vec![0f32; b * cg * n]; // [b, c (+ g), n]
-        for (i, (_, _, g)) in samples.iter().enumerate() {
+        for (i, sample) in samples.iter().enumerate() {
             for q in 0..n {
                 for ch in 0..c {
                     planar[(i * cg + ch) * n + q] = points[(i * n + q) * c + ch];
                 }
             }
-            planar[(i * cg + c) * n..(i + 1) * cg * n].copy_from_slice(g);
+            planar[(i * cg + c) * n..(i + 1) * cg * n].copy_from_slice(&sample.condition);
         }
         let depth = if self.kind.crop_axes() == 3 { s } else { 1 };
-        Tensor::from_data(TensorData::new(planar, [b, cg, depth, s, s]), &self.device)
+        (planar, [b, cg, depth, s, s])
     }
+}
+
+/// One generated sample's inputs: coordinates `[points, axes]`, latent field, condition.
+pub(super) struct FakeSample {
+    pub p: Vec<f32>,
+    pub field: LatentField,
+    pub condition: Vec<f32>,
 }

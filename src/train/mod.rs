@@ -10,6 +10,7 @@
 //! - [`adam`]: the optimiser, whose moments live in the checkpoint.
 
 pub mod adam;
+pub mod average;
 pub mod config;
 pub mod data;
 pub mod fakes;
@@ -51,6 +52,9 @@ pub struct Trainer {
     run_dir: PathBuf,
     device: Device,
     generator: Generator,
+    /// The moving average of the generator's weights (`config.average > 0`), which the run
+    /// scores, saves and paints.
+    average: Option<GeneratorWeights>,
     critic: Critic,
     adam_generator: Adam,
     adam_critic: Adam,
@@ -60,6 +64,8 @@ pub struct Trainer {
     best: Option<(f64, u64)>,
     /// The run folder's lock, taken by `start`, `resume` or the first `run`.
     lock: Option<lock::RunLock>,
+    /// Steps through the framework's autodiff even on the CPU ([`Trainer::framework_steps`]).
+    framework_only: bool,
 }
 
 impl Trainer {
@@ -95,7 +101,9 @@ impl Trainer {
             config.seed,
             stream::INIT_CRITIC,
         );
+        let average = (config.average > 0.0).then(|| generator.weights());
         Ok(Self {
+            average,
             adam_generator: Adam::new(config.lr, config.beta1, config.beta2),
             adam_critic: Adam::new(config.lr, config.beta1, config.beta2),
             config,
@@ -110,6 +118,7 @@ impl Trainer {
             iteration: 0,
             best: None,
             lock: None,
+            framework_only: false,
         })
     }
 
@@ -232,13 +241,20 @@ impl Trainer {
         }
         config.validate(&kind, &exemplar, source.main_path())?;
         let device = device.clone().autodiff();
-        let (gen_config, weights) = GeneratorWeights::read_from(&ckpt)?;
+        let (gen_config, model) = GeneratorWeights::read_from(&ckpt)?;
         if gen_config != config.generator_config(&kind, exemplar.channels) {
             return Err(input_error!(
                 "{}: generator does not match the run's config",
                 latest.display()
             ));
         }
+        // With an average, the model is the average and the trained weights are stored apart.
+        let (weights, average) = if config.average > 0.0 {
+            let (_, trained) = GeneratorWeights::read_named(average::TRAINED_PREFIX, &ckpt)?;
+            (trained, Some(model))
+        } else {
+            (model, None)
+        };
         let critic = checkpoint::read_module(
             config.critic_config(&kind, exemplar.channels).init(&device),
             "critic",
@@ -261,6 +277,7 @@ impl Trainer {
             maps,
             run_dir: run_dir.to_path_buf(),
             generator: Generator::from_weights(&weights, &device),
+            average,
             device,
             critic,
             adam_generator,
@@ -268,7 +285,21 @@ impl Trainer {
             iteration,
             best,
             lock: Some(lock),
+            framework_only: false,
         })
+    }
+
+    /// Takes every step through the framework's autodiff, as on a GPU, even on the CPU (where
+    /// steps are otherwise fused: [`crate::critic::fused`], [`crate::generator::backward`]).
+    /// For tests and benches that compare the two.
+    pub fn framework_steps(mut self) -> Self {
+        self.framework_only = true;
+        self
+    }
+
+    /// Whether steps run fused on the CPU.
+    fn fused_steps(&self) -> bool {
+        !self.framework_only && self.device.clone().inner() == Device::flex()
     }
 
     /// What this run learns.
@@ -293,13 +324,19 @@ impl Trainer {
         &self.critic
     }
 
-    /// The current generator's config and host weights.
+    /// The model the run paints: its config and host weights (the moving average of the
+    /// generator's weights when the run keeps one, else the generator's own).
     pub fn model(&self) -> (GeneratorConfig, GeneratorWeights) {
-        (
-            self.config
-                .generator_config(&self.kind, self.exemplar.channels),
-            self.generator.weights(),
-        )
+        let weights = match &self.average {
+            Some(average) => average.clone(),
+            None => self.generator.weights(),
+        };
+        (self.generator_config(), weights)
+    }
+
+    fn generator_config(&self) -> GeneratorConfig {
+        self.config
+            .generator_config(&self.kind, self.exemplar.channels)
     }
 }
 

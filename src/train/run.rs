@@ -250,6 +250,14 @@ impl Trainer {
             FINGERPRINT_KEY.into(),
             self.exemplar.fingerprint().to_string(),
         );
+        if self.average.is_some() {
+            let trained = self.generator.weights();
+            trained.write_named(
+                super::average::TRAINED_PREFIX,
+                &self.generator_config(),
+                &mut state,
+            );
+        }
         checkpoint::write_module(&self.critic, "critic", &mut state);
         self.adam_generator.write_to("adam.generator", &mut state);
         self.adam_critic.write_to("adam.critic", &mut state);

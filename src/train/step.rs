@@ -10,6 +10,8 @@ use burn::optim::GradientsParams;
 use burn::prelude::*;
 
 use super::Trainer;
+use crate::critic::fused::FusedCritic;
+use crate::generator::backward::{self, GeneratorGradients};
 use crate::generator::fused::FusedGenerator;
 use crate::latent::{derive_seed, mix64};
 
@@ -149,14 +151,10 @@ impl Trainer {
             iteration: it + 1,
             ..Default::default()
         };
-        let times = &mut stats.times;
         // The generator is fixed during the critic's steps: on the CPU its fakes come from the
         // fused evaluator, several times faster than the framework's forward pass.
         let fused = self
-            .device
-            .clone()
-            .inner()
-            .eq(&Device::flex())
+            .fused_steps()
             .then(|| FusedGenerator::new(self.generator.weights()));
         for step in 0..cfg.critic_steps as u64 {
             let t = Instant::now();
@@ -173,47 +171,32 @@ impl Trainer {
             let alphas: Vec<f32> = (0..cfg.batch as u64)
                 .map(|s| uniform(cfg.seed, &[stream::ALPHA, s, it, step]))
                 .collect();
-            let alpha = Tensor::<1>::from_data(TensorData::new(alphas, [cfg.batch]), &self.device);
-            times.critic_data += t.elapsed().as_secs_f64();
+            stats.times.critic_data += t.elapsed().as_secs_f64();
 
-            let t = Instant::now();
-            let weights = self.critic.weights(); // shared by the scores and the penalty
-            let d_real = self.critic.score(&weights, real.clone()).mean();
-            let d_fake = self.critic.score(&weights, fake.clone()).mean();
-            let penalty = self
-                .critic
-                .gradient_penalty(&weights, real, fake, alpha, cfg.gp_lambda);
-            let loss = d_fake.clone() - d_real.clone() + penalty.clone();
-            stats.wasserstein = (d_real - d_fake).into_scalar::<f32>();
-            stats.penalty = penalty.into_scalar::<f32>();
-            times.critic_forward += t.elapsed().as_secs_f64();
-
-            let t = Instant::now();
-            let grads = GradientsParams::from_grads(loss.backward(), &self.critic);
-            times.critic_backward += t.elapsed().as_secs_f64();
-            let t = Instant::now();
-            self.critic = self.adam_critic.step(self.critic.clone(), grads);
-            times.critic_update += t.elapsed().as_secs_f64();
+            if fused.is_some() {
+                self.critic_step_fused(real, fake, &alphas, &mut stats);
+            } else {
+                let alpha =
+                    Tensor::<1>::from_data(TensorData::new(alphas, [cfg.batch]), &self.device);
+                self.critic_step_framework(real, fake, alpha, &mut stats);
+            }
         }
+        // The critic is fixed during the generator's steps.
+        let frozen = fused
+            .is_some()
+            .then(|| FusedCritic::new(&self.critic, self.critic_channels(), self.crop_shape()));
         for step in 0..cfg.generator_steps as u64 {
-            let t = Instant::now();
-            let frozen = self.critic.clone().no_grad();
-            let fake = self.fake_batch(
-                &self.generator,
-                &self.device,
-                &[stream::GENERATOR_FAKE, it, step],
-            );
-            let loss = frozen.forward(fake).mean().neg();
-            stats.generator_loss = loss.clone().into_scalar::<f32>();
-            times.generator_forward += t.elapsed().as_secs_f64();
-            let t = Instant::now();
-            let grads = GradientsParams::from_grads(loss.backward(), &self.generator);
-            times.generator_backward += t.elapsed().as_secs_f64();
-            let t = Instant::now();
-            self.generator = self.adam_generator.step(self.generator.clone(), grads);
-            times.generator_update += t.elapsed().as_secs_f64();
+            let counters = [stream::GENERATOR_FAKE, it, step];
+            match &frozen {
+                Some(critic) => self.generator_step_fused(critic, &counters, &mut stats),
+                None => self.generator_step_framework(&counters, &mut stats),
+            }
         }
         self.iteration += 1;
+        if let Some(average) = &mut self.average {
+            let d = super::average::decay_at(cfg.average, self.iteration);
+            super::average::update(average, &self.generator.weights(), d);
+        }
         stats.k = self
             .generator
             .k
@@ -222,5 +205,152 @@ impl Trainer {
             .expect("K readable");
         stats.iterations_per_second = 1.0 / start.elapsed().as_secs_f32();
         stats
+    }
+
+    /// One generator update through the framework: fakes with gradient, the frozen critic's
+    /// scores, autodiff, Adam.
+    fn generator_step_framework(&mut self, counters: &[u64], stats: &mut IterationStats) {
+        let t = Instant::now();
+        let frozen = self.critic.clone().no_grad();
+        let fake = self.fake_batch(&self.generator, &self.device, counters);
+        let loss = frozen.forward(fake).mean().neg();
+        stats.generator_loss = loss.clone().into_scalar::<f32>();
+        stats.times.generator_forward += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let grads = GradientsParams::from_grads(loss.backward(), &self.generator);
+        stats.times.generator_backward += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        self.generator = self.adam_generator.step(self.generator.clone(), grads);
+        stats.times.generator_update += t.elapsed().as_secs_f64();
+    }
+
+    /// One generator update on the CPU: fakes from the fused evaluator, the critic's scores and
+    /// input gradient from the fused critic, the generator's gradient by hand
+    /// ([`crate::generator::backward`]), then Adam: the same update as
+    /// [`Trainer::generator_step_framework`].
+    fn generator_step_fused(
+        &mut self,
+        critic: &FusedCritic,
+        counters: &[u64],
+        stats: &mut IterationStats,
+    ) {
+        let t = Instant::now();
+        let weights = self.generator.weights();
+        let samples = self.fake_samples(counters);
+        let (fake, shape) = self.paint_fused(&FusedGenerator::new(weights.clone()), &samples);
+        let (scores, dx) = critic.scores_and_input_gradient(&fake, shape); // dx: [b · n, cg]
+        let b = scores.len();
+        stats.generator_loss = -scores.iter().sum::<f32>() / b as f32;
+        stats.times.generator_forward += t.elapsed().as_secs_f64();
+
+        let t = Instant::now();
+        let (c, cg) = (self.exemplar.channels, shape[1]);
+        let (n, dims) = (self.crop_points(), self.kind.generator_axes());
+        let scale = vec![self.config.latent_scale; dims];
+        // d loss / d output = -dD/dx / b, without the condition's channel: [b · n, c]
+        let d_output: Vec<f32> = dx
+            .chunks_exact(cg)
+            .flat_map(|px| px[..c].iter().map(|v| -v / b as f32))
+            .collect();
+        let groups: Vec<backward::Group> = samples
+            .iter()
+            .enumerate()
+            .flat_map(|(i, sample)| {
+                let d_output = &d_output;
+                (0..n).step_by(backward::GROUP_POINTS).map(move |start| {
+                    let end = (start + backward::GROUP_POINTS).min(n);
+                    backward::Group {
+                        p: &sample.p[start * dims..end * dims],
+                        field: &sample.field,
+                        guide: match sample.condition.is_empty() {
+                            true => &[][..],
+                            false => &sample.condition[start..end],
+                        },
+                        d_output: &d_output[(i * n + start) * c..(i * n + end) * c],
+                    }
+                })
+            })
+            .collect();
+        let grads = backward::gradients(&weights, &scale, &groups);
+        let grads = self.generator_gradients(&grads);
+        stats.times.generator_backward += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        self.generator = self.adam_generator.step(self.generator.clone(), grads);
+        stats.times.generator_update += t.elapsed().as_secs_f64();
+    }
+
+    /// Host gradients as the optimiser takes them, by parameter of the generator.
+    fn generator_gradients(&self, grads: &GeneratorGradients) -> GradientsParams {
+        let device = self.device.clone().inner();
+        let tensor1 =
+            |v: &[f32]| Tensor::<1>::from_data(TensorData::new(v.to_vec(), [v.len()]), &device);
+        let mut params = GradientsParams::new();
+        params.register(self.generator.k.id, tensor1(&grads.k));
+        for (layer, (w, b)) in self.generator.layers.iter().zip(&grads.layers) {
+            let shape = layer.weight.val().dims();
+            let w = Tensor::<2>::from_data(TensorData::new(w.clone(), shape), &device);
+            params.register(layer.weight.id, w);
+            if let Some(bias) = &layer.bias {
+                params.register(bias.id, tensor1(b));
+            }
+        }
+        params
+    }
+
+    /// One critic update through the framework: scores, the exact penalty, autodiff, Adam.
+    fn critic_step_framework(
+        &mut self,
+        real: Tensor<5>,
+        fake: Tensor<5>,
+        alpha: Tensor<1>,
+        stats: &mut IterationStats,
+    ) {
+        let t = Instant::now();
+        let weights = self.critic.weights(); // shared by the scores and the penalty
+        let d_real = self.critic.score(&weights, real.clone()).mean();
+        let d_fake = self.critic.score(&weights, fake.clone()).mean();
+        let penalty =
+            self.critic
+                .gradient_penalty(&weights, real, fake, alpha, self.config.gp_lambda);
+        let loss = d_fake.clone() - d_real.clone() + penalty.clone();
+        stats.wasserstein = (d_real - d_fake).into_scalar::<f32>();
+        stats.penalty = penalty.into_scalar::<f32>();
+        stats.times.critic_forward += t.elapsed().as_secs_f64();
+
+        let t = Instant::now();
+        let grads = GradientsParams::from_grads(loss.backward(), &self.critic);
+        stats.times.critic_backward += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        self.critic = self.adam_critic.step(self.critic.clone(), grads);
+        stats.times.critic_update += t.elapsed().as_secs_f64();
+    }
+
+    /// One critic update on the CPU with the fused step ([`FusedCritic`]): the same loss and
+    /// gradients as [`Trainer::critic_step_framework`], then Adam. Its time counts as the
+    /// critic's backward, apart from reading the weights (forward).
+    fn critic_step_fused(
+        &mut self,
+        real: Tensor<5>,
+        fake: Tensor<5>,
+        alpha: &[f32],
+        stats: &mut IterationStats,
+    ) {
+        let t = Instant::now();
+        let shape = real.dims();
+        let [_, channels, depth, rows, cols] = shape;
+        let critic = FusedCritic::new(&self.critic, channels, [depth, rows, cols]);
+        let host = |x: Tensor<5>| x.try_into_vec_as::<f32>().expect("crops readable as f32");
+        let (real, fake) = (host(real), host(fake));
+        stats.times.critic_forward += t.elapsed().as_secs_f64();
+
+        let t = Instant::now();
+        let step = critic.step(&real, &fake, alpha, shape, self.config.gp_lambda as f32);
+        stats.wasserstein = step.wasserstein;
+        stats.penalty = step.penalty;
+        let grads = step.gradients(&self.critic, &self.device.clone().inner());
+        stats.times.critic_backward += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        self.critic = self.adam_critic.step(self.critic.clone(), grads);
+        stats.times.critic_update += t.elapsed().as_secs_f64();
     }
 }

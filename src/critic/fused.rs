@@ -1,0 +1,543 @@
+//! The critic's training step on the CPU, fused: the loss `mean D(fake) - mean D(real) + P` and
+//! its gradient with respect to every weight, by hand, with every product one `gemm` call.
+//!
+//! Each stride-2 convolution is an im2col followed by one product, on channels-last activations
+//! (`[batch · positions, channels]`); the weights stay in the framework's layout
+//! (`[out, in · taps]`), read transposed where a product needs it, so nothing is reordered.
+//! Products run on rayon's pool through `gemm`, which splits outputs, never sums, between
+//! threads: the result, and training, do not depend on the thread count.
+//!
+//! The penalty is differentiated as [`super::Critic::input_gradient`] builds it: with the
+//! LeakyReLU slope masks `M_l` at `x_hat` fixed, the input gradient is a chain of transposed
+//! convolutions `g_{l-1} = T_l(M_l ⊙ g_l)` from the head's weight down; its adjoint runs the
+//! same layers upwards as plain convolutions (`T_l^T = im2col · W_l`), giving each weight's
+//! share of `dP/dW_l = im2col(δ_{l-1})^T · (M_l ⊙ g_l)`. `tests.rs` checks every gradient
+//! against burn's autodiff of the framework critic, on 2 and 3 axes.
+
+use burn::optim::GradientsParams;
+use burn::prelude::*;
+use rayon::prelude::*;
+
+use super::{Critic, KERNEL};
+use crate::generator::fused::matmul_parallel;
+
+/// One stride-2 convolution's shape over 3 axes (depth, rows, cols); a 2D critic's depth axis
+/// has one tap, stride 1 and no padding.
+#[derive(Debug, Clone, Copy)]
+struct Geometry {
+    inputs: usize,
+    outputs: usize,
+    taps: [usize; 3],
+    stride: [usize; 3],
+    pad: [usize; 3],
+    input: [usize; 3],
+    output: [usize; 3],
+}
+
+impl Geometry {
+    fn in_positions(&self) -> usize {
+        self.input.iter().product()
+    }
+
+    fn out_positions(&self) -> usize {
+        self.output.iter().product()
+    }
+
+    fn tap_count(&self) -> usize {
+        self.taps.iter().product()
+    }
+
+    /// Columns of the im2col matrix: input channel, then taps (depth, row, col), fastest last,
+    /// as the framework's weight `[out, in, taps...]` orders them.
+    fn patch(&self) -> usize {
+        self.tap_count() * self.inputs
+    }
+
+    /// The input position a tap of an output position reads, or `None` in the padding.
+    fn source(&self, out: [usize; 3], tap: [usize; 3]) -> Option<usize> {
+        let mut index = 0;
+        for a in 0..3 {
+            let i = (out[a] * self.stride[a] + tap[a]).checked_sub(self.pad[a])?;
+            if i >= self.input[a] {
+                return None;
+            }
+            index = index * self.input[a] + i;
+        }
+        Some(index)
+    }
+
+    /// Calls `f(tap, input position)` for each tap of output position `p` that reads inside the
+    /// input.
+    fn for_taps(&self, p: usize, mut f: impl FnMut(usize, usize)) {
+        let [_, oh, ow] = self.output;
+        let out = [p / (oh * ow), p / ow % oh, p % ow];
+        let [td, th, tw] = self.taps;
+        for d in 0..td {
+            for h in 0..th {
+                for w in 0..tw {
+                    if let Some(i) = self.source(out, [d, h, w]) {
+                        f((d * th + h) * tw + w, i);
+                    }
+                }
+            }
+        }
+    }
+
+    /// `[batch · out positions, patch]` from channels-last `x` `[batch · in positions, inputs]`.
+    fn im2col(&self, x: &[f32], batch: usize) -> Vec<f32> {
+        let (patch, pin, pout, c) = (
+            self.patch(),
+            self.in_positions(),
+            self.out_positions(),
+            self.inputs,
+        );
+        let taps = self.tap_count();
+        let mut cols = vec![0f32; batch * pout * patch];
+        cols.par_chunks_mut(patch).enumerate().for_each(|(r, row)| {
+            let (b, p) = (r / pout, r % pout);
+            self.for_taps(p, |tap, i| {
+                let src = &x[(b * pin + i) * c..][..c];
+                for (channel, v) in src.iter().enumerate() {
+                    row[channel * taps + tap] = *v;
+                }
+            });
+        });
+        cols
+    }
+
+    /// The adjoint of [`Geometry::im2col`]: sums each column back onto the input it was read
+    /// from. One sample per task, in a fixed order.
+    fn col2im(&self, cols: &[f32], batch: usize) -> Vec<f32> {
+        let (patch, pin, pout, c) = (
+            self.patch(),
+            self.in_positions(),
+            self.out_positions(),
+            self.inputs,
+        );
+        let taps = self.tap_count();
+        let mut x = vec![0f32; batch * pin * c];
+        x.par_chunks_mut(pin * c)
+            .enumerate()
+            .for_each(|(b, sample)| {
+                for p in 0..pout {
+                    let row = &cols[(b * pout + p) * patch..][..patch];
+                    self.for_taps(p, |tap, i| {
+                        for (channel, x) in sample[i * c..(i + 1) * c].iter_mut().enumerate() {
+                            *x += row[channel * taps + tap];
+                        }
+                    });
+                }
+            });
+        x
+    }
+}
+
+/// `x · w^T` for channels-last `x` `[rows, patch]` and the framework's weight `w`
+/// `[out, patch]`: `[rows, out]`.
+fn times_transposed(x: &[f32], w: &[f32], rows: usize, patch: usize, out: usize) -> Vec<f32> {
+    let mut dst = vec![0f32; rows * out];
+    matmul_parallel(
+        &mut dst,
+        (rows, out, patch),
+        (x, (patch, 1)),
+        (w, (1, patch)),
+        false,
+    );
+    dst
+}
+
+/// `d · w` for `d` `[rows, out]` and `w` `[out, patch]`: `[rows, patch]`.
+fn times(d: &[f32], w: &[f32], rows: usize, out: usize, patch: usize) -> Vec<f32> {
+    let mut dst = vec![0f32; rows * patch];
+    matmul_parallel(
+        &mut dst,
+        (rows, patch, out),
+        (d, (out, 1)),
+        (w, (patch, 1)),
+        false,
+    );
+    dst
+}
+
+/// `d^T · x` for `d` `[rows, out]` and `x` `[rows, patch]`: a weight's gradient `[out, patch]`.
+fn weight_gradient(d: &[f32], x: &[f32], rows: usize, out: usize, patch: usize) -> Vec<f32> {
+    let mut dst = vec![0f32; out * patch];
+    matmul_parallel(
+        &mut dst,
+        (out, patch, rows),
+        (d, (1, out)),
+        (x, (patch, 1)),
+        false,
+    );
+    dst
+}
+
+/// `[batch, channels, positions...]` to `[batch · positions, channels]`.
+fn channels_last(x: &[f32], [batch, channels, depth, rows, cols]: [usize; 5]) -> Vec<f32> {
+    let positions = depth * rows * cols;
+    let mut out = Vec::with_capacity(batch * channels * positions);
+    for sample in x.chunks_exact(channels * positions) {
+        for p in 0..positions {
+            out.extend((0..channels).map(|c| sample[c * positions + p]));
+        }
+    }
+    out
+}
+
+/// The LeakyReLU's derivative where the activation is `a` (its sign is the pre-activation's).
+fn slope_at(a: f32, slope: f32) -> f32 {
+    if a > 0.0 { 1.0 } else { slope }
+}
+
+/// One forward pass: every layer's activations, and (for the score path's backward) every
+/// layer's im2col matrix.
+struct Pass {
+    cols: Vec<Vec<f32>>,
+    activations: Vec<Vec<f32>>,
+    scores: Vec<f32>,
+}
+
+/// The critic's loss, and its gradient in the framework's layouts.
+pub struct CriticStep {
+    /// Mean D(real) - mean D(fake).
+    pub wasserstein: f32,
+    pub penalty: f32,
+    /// Per convolution: weight `[out, in, depth taps, taps, taps]` and bias, flattened.
+    pub convs: Vec<(Vec<f32>, Vec<f32>)>,
+    /// The head's weight `[features, 1]` (features in `[channels, positions]` order) and bias.
+    pub head: (Vec<f32>, f32),
+}
+
+/// A host copy of a critic's weights in the layouts of the fused step.
+pub struct FusedCritic {
+    layers: Vec<Geometry>,
+    /// Per layer, the framework's `[outputs, inputs · taps]`.
+    weights: Vec<Vec<f32>>,
+    biases: Vec<Vec<f32>>,
+    /// The head's weight channels-last: `[positions · channels]`.
+    head: Vec<f32>,
+    head_bias: f32,
+    slope: f32,
+}
+
+fn host<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    t.try_into_vec_as::<f32>()
+        .expect("critic weights are readable as f32")
+}
+
+impl FusedCritic {
+    /// `critic`'s weights for inputs of `channels` and spatial `shape` `[depth, rows, cols]`
+    /// (depth 1 in 2D).
+    pub fn new(critic: &Critic, channels: usize, shape: [usize; 3]) -> Self {
+        let volumetric = critic.axes == 3;
+        let (mut input, mut inputs) = (shape, channels);
+        let mut layers = Vec::new();
+        let (mut weights, mut biases) = (Vec::new(), Vec::new());
+        for conv in &critic.convs {
+            let w = conv.weight.val();
+            let [outputs, _, td, th, tw] = w.dims();
+            let depth_axis = |v3: usize, v2: usize| if volumetric { v3 } else { v2 };
+            let g = Geometry {
+                inputs,
+                outputs,
+                taps: [td, th, tw],
+                stride: [depth_axis(2, 1), 2, 2],
+                pad: [depth_axis(1, 0), 1, 1],
+                input,
+                output: [depth_axis(input[0] / 2, 1), input[1] / 2, input[2] / 2],
+            };
+            debug_assert_eq!([th, tw], [KERNEL, KERNEL]);
+            weights.push(host(w));
+            biases.push(
+                conv.bias
+                    .as_ref()
+                    .map_or(vec![0.0; outputs], |b| host(b.val())),
+            );
+            (input, inputs) = (g.output, outputs);
+            layers.push(g);
+        }
+        let positions: usize = input.iter().product();
+        let hw = host(critic.head.weight.val()); // [channels · positions, 1]
+        let mut head = vec![0f32; hw.len()];
+        for c in 0..inputs {
+            for p in 0..positions {
+                head[p * inputs + c] = hw[c * positions + p];
+            }
+        }
+        let head_bias = critic.head.bias.as_ref().map_or(0.0, |b| host(b.val())[0]);
+        Self {
+            layers,
+            weights,
+            biases,
+            head,
+            head_bias,
+            slope: critic.slope as f32,
+        }
+    }
+
+    /// Scores `x` (channels-last, `[batch · positions, channels]`), keeping what the backward
+    /// needs.
+    fn forward(&self, x: &[f32], batch: usize, keep_cols: bool) -> Pass {
+        let mut pass = Pass {
+            cols: Vec::new(),
+            activations: Vec::new(),
+            scores: Vec::new(),
+        };
+        for (l, g) in self.layers.iter().enumerate() {
+            let input = if l == 0 { x } else { &pass.activations[l - 1] };
+            let cols = g.im2col(input, batch); // [batch · out positions, patch]
+            let (rows, patch, o) = (batch * g.out_positions(), g.patch(), g.outputs);
+            let mut z = times_transposed(&cols, &self.weights[l], rows, patch, o); // [rows, o]
+            let slope = self.slope;
+            z.par_chunks_mut(o).for_each(|row| {
+                for (v, b) in row.iter_mut().zip(&self.biases[l]) {
+                    let s = *v + b;
+                    *v = if s > 0.0 { s } else { s * slope };
+                }
+            });
+            if keep_cols {
+                pass.cols.push(cols);
+            }
+            pass.activations.push(z);
+        }
+        let last = pass.activations.last().expect("critic has convolutions");
+        let per_sample = self.head.len();
+        pass.scores = last
+            .chunks_exact(per_sample)
+            .map(|a| a.iter().zip(&self.head).map(|(a, w)| a * w).sum::<f32>() + self.head_bias)
+            .collect();
+        pass
+    }
+
+    /// The loss's gradient through the scores of `pass` with `d loss / d score_b = ds[b]`, added
+    /// to `grads`. The pass is of real then fake samples, as many of each.
+    fn backward_scores(&self, pass: &Pass, ds: &[f32], grads: &mut Gradients) {
+        let batch = ds.len();
+        let last = pass.activations.last().expect("critic has convolutions");
+        let per_sample = self.head.len();
+        // d loss / d (last activation) = ds[b] · head, per sample.
+        let mut d: Vec<f32> = ds
+            .iter()
+            .flat_map(|&s| self.head.iter().map(move |w| s * w))
+            .collect();
+        for (b, a) in last.chunks_exact(per_sample).enumerate() {
+            for (h, a) in grads.head.iter_mut().zip(a) {
+                *h += ds[b] * a;
+            }
+        }
+        // The real and fake halves' sums cancel exactly, as the framework's do: an Adam step
+        // would make a rounding residue a step of about lr.
+        let (first, second) = ds.split_at(batch / 2);
+        grads.head_bias += first.iter().sum::<f32>() + second.iter().sum::<f32>();
+        for (l, g) in self.layers.iter().enumerate().rev() {
+            let (rows, o, patch) = (batch * g.out_positions(), g.outputs, g.patch());
+            for (d, a) in d.iter_mut().zip(&pass.activations[l]) {
+                *d *= slope_at(*a, self.slope); // through the LeakyReLU: d = dz
+            }
+            grads.add(l, &weight_gradient(&d, &pass.cols[l], rows, o, patch));
+            // Each half (real, fake) summed on its own, then added, as the framework's two
+            // graphs do: the halves nearly cancel, and Adam's first steps are about
+            // g / (|g| + eps), so the residue's rounding matters.
+            let (first, second) = d.split_at(rows / 2 * o);
+            let sum = |half: &[f32]| {
+                let mut total = vec![0f32; o];
+                for row in half.chunks_exact(o) {
+                    total.iter_mut().zip(row).for_each(|(t, v)| *t += v);
+                }
+                total
+            };
+            let (a, b) = (sum(first), sum(second));
+            for ((g, a), b) in grads.biases[l].iter_mut().zip(a).zip(b) {
+                *g += a + b;
+            }
+            if l > 0 {
+                d = g.col2im(&times(&d, &self.weights[l], rows, o, patch), batch);
+            }
+        }
+    }
+
+    /// dD/dx for each sample of a forward pass whose activations are `masks` (channels-last,
+    /// `[batch · positions, channels]`), and each layer's `t_l = M_l ⊙ g_l`.
+    fn input_gradient(&self, masks: &[Vec<f32>], batch: usize) -> (Vec<f32>, Vec<Vec<f32>>) {
+        let slope = self.slope;
+        // Down: t_l = M_l ⊙ g_l, from g_top = the head's weight; g_{l-1} = col2im(t_l · W_l).
+        let mut ts = vec![Vec::new(); masks.len()];
+        let mut g: Vec<f32> = (0..batch).flat_map(|_| self.head.iter().copied()).collect();
+        for (l, geometry) in self.layers.iter().enumerate().rev() {
+            for (g, a) in g.iter_mut().zip(&masks[l]) {
+                *g *= slope_at(*a, slope);
+            }
+            let (rows, o, patch) = (
+                batch * geometry.out_positions(),
+                geometry.outputs,
+                geometry.patch(),
+            );
+            let cols = times(&g, &self.weights[l], rows, o, patch);
+            ts[l] = std::mem::replace(&mut g, geometry.col2im(&cols, batch));
+        }
+        (g, ts)
+    }
+
+    /// Scores of `x` (`[batch, channels, depth, rows, cols]`, flattened) and their gradient with
+    /// respect to `x`, channels-last (`[batch · positions, channels]`): what the generator's
+    /// step needs.
+    pub fn scores_and_input_gradient(&self, x: &[f32], shape: [usize; 5]) -> (Vec<f32>, Vec<f32>) {
+        let batch = shape[0];
+        let x = channels_last(x, shape);
+        let pass = self.forward(&x, batch, false);
+        let (g, _) = self.input_gradient(&pass.activations, batch);
+        (pass.scores, g)
+    }
+
+    /// The penalty `lambda · mean_b (||dD/dx (x_hat_b)|| - 1)^2` and its gradient, added to
+    /// `grads`.
+    fn penalty(&self, x_hat: &[f32], batch: usize, lambda: f32, grads: &mut Gradients) -> f32 {
+        let masks = self.forward(x_hat, batch, false).activations;
+        let (g, ts) = self.input_gradient(&masks, batch);
+        // g is dD/dx at x_hat, [batch · positions, channels].
+        let per_sample = g.len() / batch;
+        let mut penalty = 0.0;
+        let mut delta = g;
+        for sample in delta.chunks_exact_mut(per_sample) {
+            let norm = (sample.iter().map(|v| v * v).sum::<f32>() + 1e-12).sqrt();
+            penalty += (norm - 1.0).powi(2);
+            let scale = lambda / batch as f32 * 2.0 * (norm - 1.0) / norm;
+            sample.iter_mut().for_each(|v| *v *= scale);
+        }
+        // Up: dP/dt_l = im2col(δ_{l-1}) · W_l; dP/dW_l += im2col(δ_{l-1})^T · t_l;
+        // δ_l = M_l ⊙ dP/dt_l.
+        for (l, geometry) in self.layers.iter().enumerate() {
+            let (rows, o, patch) = (
+                batch * geometry.out_positions(),
+                geometry.outputs,
+                geometry.patch(),
+            );
+            let cols = geometry.im2col(&delta, batch);
+            grads.add(l, &weight_gradient(&ts[l], &cols, rows, o, patch));
+            delta = times_transposed(&cols, &self.weights[l], rows, patch, o);
+            for (d, a) in delta.iter_mut().zip(&masks[l]) {
+                *d *= slope_at(*a, self.slope);
+            }
+        }
+        // t_top = M_top ⊙ head: the head's share is the sum of δ_top over the batch.
+        debug_assert_eq!(delta.len(), batch * self.head.len());
+        for sample in delta.chunks_exact(self.head.len()) {
+            for (h, v) in grads.head.iter_mut().zip(sample) {
+                *h += v;
+            }
+        }
+        lambda * penalty / batch as f32
+    }
+
+    /// The critic's WGAN-GP loss at `real` and `fake` (`[batch, channels, depth, rows, cols]`,
+    /// flattened) with the penalty at `alpha · real + (1 - alpha) · fake`, and its gradient.
+    pub fn step(
+        &self,
+        real: &[f32],
+        fake: &[f32],
+        alpha: &[f32],
+        shape: [usize; 5],
+        lambda: f32,
+    ) -> CriticStep {
+        let [batch, channels, ..] = shape;
+        let positions = shape[2..].iter().product::<usize>();
+        let mut both = channels_last(real, shape);
+        both.extend(channels_last(fake, shape));
+        let x_hat: Vec<f32> = (0..batch)
+            .flat_map(|b| {
+                let n = channels * positions;
+                let (r, f) = (&both[b * n..][..n], &both[(batch + b) * n..][..n]);
+                r.iter()
+                    .zip(f)
+                    .map(move |(r, f)| alpha[b] * r + (1.0 - alpha[b]) * f)
+            })
+            .collect();
+        let mut grads = Gradients::zeros(self);
+        let pass = self.forward(&both, 2 * batch, true);
+        let inv = 1.0 / batch as f32;
+        let ds: Vec<f32> = (0..2 * batch)
+            .map(|i| if i < batch { -inv } else { inv })
+            .collect();
+        self.backward_scores(&pass, &ds, &mut grads);
+        let penalty = self.penalty(&x_hat, batch, lambda, &mut grads);
+        let mean = |s: &[f32]| s.iter().sum::<f32>() * inv;
+        CriticStep {
+            wasserstein: mean(&pass.scores[..batch]) - mean(&pass.scores[batch..]),
+            penalty,
+            ..grads.into_framework(self)
+        }
+    }
+}
+
+/// Gradients in the fused layouts while they are summed.
+struct Gradients {
+    weights: Vec<Vec<f32>>,
+    biases: Vec<Vec<f32>>,
+    head: Vec<f32>,
+    head_bias: f32,
+}
+
+impl Gradients {
+    fn zeros(critic: &FusedCritic) -> Self {
+        Self {
+            weights: critic.weights.iter().map(|w| vec![0.0; w.len()]).collect(),
+            biases: critic.biases.iter().map(|b| vec![0.0; b.len()]).collect(),
+            head: vec![0.0; critic.head.len()],
+            head_bias: 0.0,
+        }
+    }
+
+    fn add(&mut self, layer: usize, dw: &[f32]) {
+        for (g, v) in self.weights[layer].iter_mut().zip(dw) {
+            *g += v;
+        }
+    }
+
+    /// The gradients in the framework critic's layouts (see [`CriticStep`]).
+    fn into_framework(self, critic: &FusedCritic) -> CriticStep {
+        let convs = self.weights.into_iter().zip(self.biases).collect();
+        let last = critic.layers.last().expect("critic has convolutions");
+        let (channels, positions) = (last.outputs, last.out_positions());
+        let mut head = vec![0f32; self.head.len()];
+        for c in 0..channels {
+            for p in 0..positions {
+                head[c * positions + p] = self.head[p * channels + c];
+            }
+        }
+        CriticStep {
+            wasserstein: 0.0,
+            penalty: 0.0,
+            convs,
+            head: (head, self.head_bias),
+        }
+    }
+}
+
+impl CriticStep {
+    /// The gradients as the optimiser takes them: by parameter of `critic`, on `device` (the
+    /// plain device the autodiff device wraps).
+    pub fn gradients(&self, critic: &Critic, device: &Device) -> GradientsParams {
+        let mut grads = GradientsParams::new();
+        let tensor1 =
+            |v: &[f32]| Tensor::<1>::from_data(TensorData::new(v.to_vec(), [v.len()]), device);
+        for (conv, (w, b)) in critic.convs.iter().zip(&self.convs) {
+            let shape = conv.weight.val().dims();
+            grads.register(
+                conv.weight.id,
+                Tensor::<5>::from_data(TensorData::new(w.clone(), shape), device),
+            );
+            if let Some(bias) = &conv.bias {
+                grads.register(bias.id, tensor1(b));
+            }
+        }
+        let (w, b) = &self.head;
+        grads.register(
+            critic.head.weight.id,
+            Tensor::<2>::from_data(TensorData::new(w.clone(), [w.len(), 1]), device),
+        );
+        if let Some(bias) = &critic.head.bias {
+            grads.register(bias.id, tensor1(&[*b]));
+        }
+        grads
+    }
+}
