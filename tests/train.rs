@@ -14,32 +14,42 @@ use ipfn::train::{TrainConfig, Trainer};
 
 #[test]
 fn resume_continues_bit_exactly() {
+    resume_is_bit_exact(&[]);
+}
+
+/// With a moving average of the generator's weights, the model files hold the average and the
+/// training state the trained weights too; both continue exactly.
+#[test]
+fn resume_with_a_moving_average_continues_bit_exactly() {
+    let d = resume_is_bit_exact(&["--average", "0.9"]);
+    let state = Checkpoint::load(&d.path().join("runs/two/latest.ipfn")).unwrap();
+    let (average, trained) = (
+        &state.tensors["generator.layers.0.weight"],
+        &state.tensors["training.generator.layers.0.weight"],
+    );
+    assert_ne!(
+        average, trained,
+        "the model is the average, not the trained weights"
+    );
+    let best = Checkpoint::load(&d.path().join("runs/two/best.ipfn")).unwrap();
+    assert!(!best.tensors.keys().any(|k| k.starts_with("training.")));
+}
+
+fn resume_is_bit_exact(extra: &[&str]) -> tempfile::TempDir {
     let dir = common::tiny_run_folder();
     let d = dir.path();
     let run = |args: &[&str]| {
         let out = ipfn(d, args);
         assert!(out.status.success(), "{:?}: {}", args, stderr(&out));
     };
-    run(&[
-        "train",
-        "ex.png",
-        "--config",
-        "tiny.toml",
-        "--out",
-        "runs/one",
-        "--iterations",
-        "4",
-    ]);
-    run(&[
-        "train",
-        "ex.png",
-        "--config",
-        "tiny.toml",
-        "--out",
-        "runs/two",
-        "--iterations",
-        "2",
-    ]);
+    let train = |out: &str, iterations: &str| {
+        let mut args = vec!["train", "ex.png", "--config", "tiny.toml", "--out", out];
+        args.extend(["--iterations", iterations]);
+        args.extend(extra);
+        run(&args);
+    };
+    train("runs/one", "4");
+    train("runs/two", "2");
     run(&["train", "--resume", "runs/two", "--iterations", "4"]);
     let a = Checkpoint::load(&d.join("runs/one/latest.ipfn")).unwrap();
     let b = Checkpoint::load(&d.join("runs/two/latest.ipfn")).unwrap();
@@ -79,6 +89,7 @@ fn resume_continues_bit_exactly() {
         "{}",
         stderr(&out)
     );
+    dir
 }
 
 /// Starts a long run and waits until it has written `rows` metrics rows.
