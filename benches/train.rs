@@ -1,47 +1,44 @@
-//! Training speed: one iteration (5 critic + 5 generator steps, batch 4, crop 128) on flex,
-//! beside the authors' PyTorch code on the same 2-core machine (40.6 s, measured separately:
-//! DESIGN.md §3; not re-run here).
+//! Training speed on the CPU: one iteration (5 critic + 5 generator steps) of the two configs a
+//! CPU run uses (`configs/quick.toml`'s, which `ipfn train` takes on a CPU, and the authors'
+//! `configs/default.toml`: batch 4, crop 128, 10x128), each
+//! - with the fused steps (`ipfn train`'s CPU path) and through burn's autodiff (the GPU path,
+//!   here on flex), timed in the same run;
+//! - beside its floor measured now: both networks' matrix products as bare GEMMs
+//!   (`ipfn::bench::floor`);
+//! - and, for the authors' config, beside the authors' PyTorch code on the same 2-core machine
+//!   (40.6 s, measured separately: DESIGN.md §3; not re-run here).
 //!
 //! `cargo bench --bench train` prints the median of `IPFN_BENCH_RUNS` iterations (default 3)
-//! and a split into critic and generator steps (from runs with 5+1 and 1+5 steps).
+//! after one warm-up, and where the fused iteration's time went. `IPFN_BENCH_CONFIG=FILE`
+//! times that config instead of the two.
 
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use burn::prelude::*;
-use ipfn::train::{TrainConfig, Trainer};
+use ipfn::bench::floor;
+use ipfn::train::{StepTimes, TrainConfig, Trainer};
 
 const AUTHORS_ITERATION_S: f64 = 40.6;
 
 fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    v.sort_by(f64::total_cmp);
     v[v.len() / 2]
 }
 
 fn time_iteration(
-    exemplar: &std::path::Path,
-    critic_steps: usize,
-    generator_steps: usize,
+    exemplar: &Path,
+    config: &TrainConfig,
+    framework: bool,
     runs: usize,
-) -> (f64, ipfn::train::StepTimes) {
+) -> (f64, StepTimes) {
     let dir = tempfile::tempdir().unwrap();
-    let base = match std::env::var("IPFN_BENCH_CONFIG") {
-        Ok(path) => {
-            TrainConfig::from_file(std::path::Path::new(&path))
-                .unwrap()
-                .0
-        }
-        Err(_) => TrainConfig {
-            batch: 4,
-            crop: 128,
-            ..TrainConfig::default()
-        },
+    let trainer = Trainer::new(config.clone(), exemplar, dir.path(), &Device::flex()).unwrap();
+    let mut trainer = if framework {
+        trainer.framework_steps()
+    } else {
+        trainer
     };
-    let config = TrainConfig {
-        critic_steps,
-        generator_steps,
-        ..base
-    };
-    let mut trainer = Trainer::new(config, exemplar, dir.path(), &Device::flex()).unwrap();
     trainer.step(); // warm-up
     let mut parts = Default::default();
     let time = median(
@@ -61,32 +58,64 @@ fn main() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(3);
-    let exemplar = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("exemplars/honeycomb.png");
-    let (full, t) = time_iteration(&exemplar, 5, 5, runs);
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let exemplar = root.join("exemplars/honeycomb.png");
+    let configs: Vec<PathBuf> = match std::env::var("IPFN_BENCH_CONFIG") {
+        Ok(path) => vec![path.into()],
+        Err(_) => vec![root.join("configs/quick.toml"), root.join("configs/default.toml")],
+    };
     println!(
-        "training on flex ({} threads), batch 4, crop 128, honeycomb exemplar, median of {runs}",
+        "training on the CPU ({} threads), honeycomb exemplar, median of {runs}",
         rayon::current_num_threads()
     );
-    println!("| work | ours | authors' code | authors / ours |");
-    println!("|---|---|---|---|");
     println!(
-        "| one iteration (5 critic + 5 generator steps) | {full:.2} s | {AUTHORS_ITERATION_S:.1} s (reference) | {:.1}x |",
-        AUTHORS_ITERATION_S / full
-    );
-    println!();
-    println!("where the last iteration's time went (seconds, summed over its steps):");
-    println!(
-        "| critic: crops + fakes | critic: forward + penalty | critic: backward | critic: Adam | generator: forward (G + D) | generator: backward | generator: Adam |"
+        "| config | fused (ipfn train) | burn autodiff | GEMM floor of both networks | fused / floor | authors' code | authors / fused |"
     );
     println!("|---|---|---|---|---|---|---|");
+    let mut splits = Vec::new();
+    for path in &configs {
+        let (config, _) = TrainConfig::from_file(path).unwrap();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let (fused, parts) = time_iteration(&exemplar, &config, false, runs);
+        let (framework, _) = time_iteration(&exemplar, &config, true, runs);
+        let kind = config.run_kind().unwrap();
+        let products = floor::iteration_products(&config, &kind, 3);
+        let floor_s = ipfn::bench::time(runs, floor::run_products(&products));
+        let authors = (name == "default.toml")
+            .then(|| {
+                format!(
+                    "{AUTHORS_ITERATION_S:.1} s (reference) | {:.1}x",
+                    AUTHORS_ITERATION_S / fused
+                )
+            })
+            .unwrap_or_else(|| "- | -".into());
+        println!(
+            "| {name} (batch {}, crop {}, {}x{}) | {fused:.3} s | {framework:.3} s | {floor_s:.3} s ({:.0} GFLOP) | {:.2}x | {authors} |",
+            config.batch,
+            config.crop,
+            config.hidden_layers,
+            config.width,
+            floor::flops(&products) / 1e9,
+            fused / floor_s,
+        );
+        splits.push((name, parts));
+    }
+    println!();
+    println!("where the fused iteration's time went (seconds, summed over its steps):");
     println!(
-        "| {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
-        t.critic_data,
-        t.critic_forward,
-        t.critic_backward,
-        t.critic_update,
-        t.generator_forward,
-        t.generator_backward,
-        t.generator_update
+        "| config | critic: crops + fakes | critic: weights in | critic: loss, penalty, gradients | critic: Adam | generator: fakes + critic | generator: backward | generator: Adam |"
     );
+    println!("|---|---|---|---|---|---|---|---|");
+    for (name, t) in splits {
+        println!(
+            "| {name} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} |",
+            t.critic_data,
+            t.critic_forward,
+            t.critic_backward,
+            t.critic_update,
+            t.generator_forward,
+            t.generator_backward,
+            t.generator_update
+        );
+    }
 }

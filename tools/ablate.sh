@@ -8,13 +8,19 @@
 #   tools/ablate.sh BUDGET SEED "FLAGS A" "FLAGS B" EXEMPLAR...
 #   tools/ablate.sh 5m 0 "--average 0.98" "" ../shared/exemplars/brick.jpg
 #
-# Uses target/release/ipfn (build it first: cargo build --release). Work goes to
+# BUDGET is a --time (5m) or a number of iterations (450): a change that costs nothing per
+# iteration is compared at equal iterations, which other work on the machine cannot skew.
+#
+# Uses target/release/ipfn (build it first: cargo build --release), or IPFN_BIN (a copy, so that
+# building while it runs does not change the binary between A and B). Work goes to
 # ${IPFN_MEASURE_DIR:-/tmp/ipfn-ablate}; IPFN_MEASURE_REUSE=1 scores runs already there.
 set -euo pipefail
 budget="$1"; seed="$2"; a="$3"; b="$4"; shift 4
-ipfn="$(cd "$(dirname "$0")/.." && pwd)/target/release/ipfn"
+ipfn="${IPFN_BIN:-$(cd "$(dirname "$0")/.." && pwd)/target/release/ipfn}"
 work="${IPFN_MEASURE_DIR:-/tmp/ipfn-ablate}"
 mkdir -p "$work"
+length="--time $budget"
+[[ "$budget" =~ ^[0-9]+$ ]] && length="--iterations $budget"
 slug() { local s="${1:-none}"; s="${s//--/}"; s="${s// /_}"; echo "${s//[^A-Za-z0-9_.=-]/}"; }
 sifid() { # run exemplar -> "mean ± std"
   "$ipfn" eval --model "$1" --exemplar "$2" --samples 8 --json 2>/dev/null |
@@ -32,7 +38,7 @@ for photo in "$@"; do
     [ "${IPFN_MEASURE_REUSE:-0}" = 1 ] && [ -f "$run/latest.ipfn" ] && continue
     rm -rf "$run"
     # shellcheck disable=SC2086 # the flags are words
-    "$ipfn" train "$photo" $flags --time "$budget" --seed "$seed" --out "$run" --quiet
+    "$ipfn" train "$photo" $flags $length --seed "$seed" --out "$run" --quiet
   done
   ra="$(sifid "${runs[0]}" "$photo")"; rb="$(sifid "${runs[1]}" "$photo")"
   ratio="$(python3 -c "print('%.2f' % (${ra%% *} / ${rb%% *}))")"

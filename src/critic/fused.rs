@@ -430,14 +430,15 @@ impl FusedCritic {
     }
 
     /// The critic's WGAN-GP loss at `real` and `fake` (`[batch, channels, depth, rows, cols]`,
-    /// flattened) with the penalty at `alpha · real + (1 - alpha) · fake`, and its gradient.
+    /// flattened) with the penalty at `alpha · real + (1 - alpha) · fake` weighted by `lambda`
+    /// (none: no penalty), and its gradient.
     pub fn step(
         &self,
         real: &[f32],
         fake: &[f32],
         alpha: &[f32],
         shape: [usize; 5],
-        lambda: f32,
+        lambda: Option<f32>,
     ) -> CriticStep {
         let [batch, channels, ..] = shape;
         let positions = shape[2..].iter().product::<usize>();
@@ -459,7 +460,7 @@ impl FusedCritic {
             .map(|i| if i < batch { -inv } else { inv })
             .collect();
         self.backward_scores(&pass, &ds, &mut grads);
-        let penalty = self.penalty(&x_hat, batch, lambda, &mut grads);
+        let penalty = lambda.map_or(0.0, |l| self.penalty(&x_hat, batch, l, &mut grads));
         let mean = |s: &[f32]| s.iter().sum::<f32>() * inv;
         CriticStep {
             wasserstein: mean(&pass.scores[..batch]) - mean(&pass.scores[batch..]),

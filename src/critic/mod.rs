@@ -11,7 +11,8 @@
 //! `dD/dx = W_1^T M_1 W_2^T M_2 ... W_4^T M_4 w_head`, where `M_l` is the (detached) LeakyReLU
 //! slope mask of layer l and `W_l^T` is a transposed convolution with the same weights.
 //! [`Critic::input_gradient`] builds that product from ordinary tensor ops, so first-order
-//! autodiff differentiates the penalty with respect to the weights exactly.
+//! autodiff differentiates the penalty with respect to the weights exactly. On the CPU,
+//! [`fused`] computes the same loss and gradients by hand.
 
 use burn::module::Param;
 use burn::nn::{Linear, LinearConfig};

@@ -5,9 +5,10 @@
 //! random field of [`crate::latent`]. The MLP has `hidden_layers` linear layers of `width` units,
 //! each followed by ReLU, then one linear layer to `channels` outputs.
 //!
-//! Two evaluators share one set of weights ([`GeneratorWeights`]):
+//! Three evaluators share one set of weights ([`GeneratorWeights`]):
 //! - [`Generator`], a burn module: differentiable (training) and runs on any burn device (flex, wgpu).
-//! - [`fused::FusedGenerator`], a fused CPU loop for fast synthesis.
+//! - [`fused::FusedGenerator`], a fused CPU loop for fast synthesis, whose gradient
+//!   [`backward`] writes out by hand for training on the CPU.
 //! - [`kernel::KernelGenerator`], one CubeCL kernel for fast synthesis on GPUs (wgpu, CUDA).
 
 pub mod backward;

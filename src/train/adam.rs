@@ -95,6 +95,38 @@ impl Adam {
     }
 }
 
+impl Adam {
+    /// One parameter's update on the CPU in one pass over host copies, where the framework
+    /// would make a dozen passes, each with a fresh buffer: `(update, m, v)`, as the framework
+    /// path computes them (the same formula; rounding may differ in the last bit).
+    fn update_on_host(
+        &self,
+        grad: Tensor<1>,
+        moments: Option<(Tensor<1>, Tensor<1>)>,
+        bias1: f64,
+        bias2: f64,
+    ) -> (Tensor<1>, Tensor<1>, Tensor<1>) {
+        let device = grad.device();
+        let host = |t: Tensor<1>| t.try_into_vec_as::<f32>().expect("readable as f32");
+        let g = host(grad);
+        let n = g.len();
+        let (mut m, mut v) = match moments {
+            Some((m, v)) => (host(m), host(v)),
+            None => (vec![0.0; n], vec![0.0; n]),
+        };
+        let (b1, b2, eps) = (self.beta1 as f32, self.beta2 as f32, self.eps as f32);
+        let (root2, step) = (bias2.sqrt() as f32, (self.lr / bias1) as f32);
+        let mut update = vec![0f32; n];
+        for i in 0..n {
+            m[i] = m[i] * b1 + g[i] * (1.0 - b1);
+            v[i] = v[i] * b2 + g[i] * g[i] * (1.0 - b2);
+            update[i] = m[i] / (v[i].sqrt() / root2 + eps) * step;
+        }
+        let tensor = |x: Vec<f32>| Tensor::<1>::from_data(TensorData::new(x, [n]), &device);
+        (tensor(update), tensor(m), tensor(v))
+    }
+}
+
 struct AdamMapper<'a> {
     adam: &'a mut Adam,
     grads: GradientsParams,
@@ -120,17 +152,20 @@ impl ModuleMapper for AdamMapper<'_> {
         let n: usize = shape.iter().product();
         let grad = grad.reshape([n]);
         let path = self.path.join(".");
-        let (m, v) = match a.moments.remove(&path) {
-            Some((m, v)) => (m, v),
-            None => (grad.zeros_like(), grad.zeros_like()),
-        };
-        let m = m * a.beta1 + grad.clone() * (1.0 - a.beta1);
-        let v = v * a.beta2 + grad.powi_scalar(2) * (1.0 - a.beta2);
+        let moments = a.moments.remove(&path);
         let t = a.steps as i32;
         let bias1 = 1.0 - a.beta1.powi(t);
         let bias2 = 1.0 - a.beta2.powi(t);
-        let denom = v.clone().sqrt() / bias2.sqrt() + a.eps;
-        let update = (m.clone() / denom * (a.lr / bias1)).reshape(shape);
+        let (update, m, v) = if grad.device() == Device::flex() {
+            a.update_on_host(grad, moments, bias1, bias2)
+        } else {
+            let (m, v) = moments.unwrap_or_else(|| (grad.zeros_like(), grad.zeros_like()));
+            let m = m * a.beta1 + grad.clone() * (1.0 - a.beta1);
+            let v = v * a.beta2 + grad.powi_scalar(2) * (1.0 - a.beta2);
+            let denom = v.clone().sqrt() / bias2.sqrt() + a.eps;
+            (m.clone() / denom * (a.lr / bias1), m, v)
+        };
+        let update = update.reshape(shape);
         a.moments.insert(path, (m, v));
         let require_grad = tensor.is_require_grad();
         let mut updated = Tensor::from_inner(tensor.inner() - update);

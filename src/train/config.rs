@@ -33,6 +33,10 @@ pub struct TrainConfig {
     pub beta2: f64,
     /// Weight of the gradient penalty.
     pub gp_lambda: f64,
+    /// The penalty runs on every this-many-th critic step, weighted by `penalty_every ·
+    /// gp_lambda` (lazy regularisation, Karras et al. 2020); 1 runs it on every step.
+    #[serde(skip_serializing_if = "is_one")]
+    pub penalty_every: usize,
     /// Seed of every random draw.
     pub seed: u64,
     /// Scale the exemplar by this factor first (Lanczos-3, anti-aliased); 1 keeps it as it is.
@@ -94,6 +98,10 @@ pub struct TrainConfig {
     pub average: f64,
 }
 
+fn is_one(v: &usize) -> bool {
+    *v == 1
+}
+
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }
@@ -118,6 +126,7 @@ impl Default for TrainConfig {
             beta1: 0.5,
             beta2: 0.9,
             gp_lambda: 10.0,
+            penalty_every: 1,
             seed: 0,
             resize: 1.0,
             checkpoint_every: 100,
@@ -320,6 +329,7 @@ impl TrainConfig {
             ("batch", self.batch),
             ("critic_steps", self.critic_steps),
             ("generator_steps", self.generator_steps),
+            ("penalty_every", self.penalty_every),
             ("checkpoint_every", self.checkpoint_every as usize),
             ("preview_every", self.preview_every as usize),
             ("log_every", self.log_every as usize),
@@ -517,6 +527,9 @@ overrides! {
     critic_steps: usize, fixed;
     /// Generator updates per iteration.
     generator_steps: usize, fixed;
+    /// Run the gradient penalty on every N-th critic step, weighted N times (lazy
+    /// regularisation); 1: every step.
+    penalty_every: usize, fixed;
     /// Adam learning rate.
     lr: f64, fixed;
     /// Seed of every random draw.

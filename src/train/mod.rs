@@ -5,9 +5,13 @@
 //! - [`config`]: every setting, the flags that override them, the run's kind;
 //! - [`data`]: the exemplar and its random crops (over 2 or 3 axes), the critic's real input;
 //! - [`fakes`]: generated crops, the critic's fake input;
-//! - [`step`]: one iteration, random streams and initialisation;
+//! - [`step`]: one iteration, random streams and initialisation; on the CPU the critic's and
+//!   the generator's steps are fused ([`crate::critic::fused`], [`crate::generator::backward`]),
+//!   elsewhere they go through burn's autodiff;
+//! - [`average`]: the moving average of the generator's weights that a run can paint;
 //! - [`run`]: the run folder, checkpoints, previews, metrics, and the training loop;
-//! - [`adam`]: the optimiser, whose moments live in the checkpoint.
+//! - [`adam`]: the optimiser, whose moments live in the checkpoint (one host pass per parameter
+//!   on the CPU).
 
 pub mod adam;
 pub mod average;

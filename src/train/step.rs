@@ -173,12 +173,17 @@ impl Trainer {
                 .collect();
             stats.times.critic_data += t.elapsed().as_secs_f64();
 
+            // Lazy regularisation: the penalty on every `penalty_every`-th critic step.
+            let counted = it * cfg.critic_steps as u64 + step;
+            let lambda = counted
+                .is_multiple_of(cfg.penalty_every as u64)
+                .then_some(cfg.gp_lambda * cfg.penalty_every as f64);
             if fused.is_some() {
-                self.critic_step_fused(real, fake, &alphas, &mut stats);
+                self.critic_step_fused(real, fake, &alphas, lambda, &mut stats);
             } else {
                 let alpha =
                     Tensor::<1>::from_data(TensorData::new(alphas, [cfg.batch]), &self.device);
-                self.critic_step_framework(real, fake, alpha, &mut stats);
+                self.critic_step_framework(real, fake, alpha, lambda, &mut stats);
             }
         }
         // The critic is fixed during the generator's steps.
@@ -303,18 +308,22 @@ impl Trainer {
         real: Tensor<5>,
         fake: Tensor<5>,
         alpha: Tensor<1>,
+        lambda: Option<f64>,
         stats: &mut IterationStats,
     ) {
         let t = Instant::now();
         let weights = self.critic.weights(); // shared by the scores and the penalty
         let d_real = self.critic.score(&weights, real.clone()).mean();
         let d_fake = self.critic.score(&weights, fake.clone()).mean();
-        let penalty =
-            self.critic
-                .gradient_penalty(&weights, real, fake, alpha, self.config.gp_lambda);
-        let loss = d_fake.clone() - d_real.clone() + penalty.clone();
+        let mut loss = d_fake.clone() - d_real.clone();
+        if let Some(lambda) = lambda {
+            let penalty = self
+                .critic
+                .gradient_penalty(&weights, real, fake, alpha, lambda);
+            loss = loss + penalty.clone();
+            stats.penalty = penalty.into_scalar::<f32>();
+        }
         stats.wasserstein = (d_real - d_fake).into_scalar::<f32>();
-        stats.penalty = penalty.into_scalar::<f32>();
         stats.times.critic_forward += t.elapsed().as_secs_f64();
 
         let t = Instant::now();
@@ -333,6 +342,7 @@ impl Trainer {
         real: Tensor<5>,
         fake: Tensor<5>,
         alpha: &[f32],
+        lambda: Option<f64>,
         stats: &mut IterationStats,
     ) {
         let t = Instant::now();
@@ -344,9 +354,11 @@ impl Trainer {
         stats.times.critic_forward += t.elapsed().as_secs_f64();
 
         let t = Instant::now();
-        let step = critic.step(&real, &fake, alpha, shape, self.config.gp_lambda as f32);
+        let step = critic.step(&real, &fake, alpha, shape, lambda.map(|l| l as f32));
         stats.wasserstein = step.wasserstein;
-        stats.penalty = step.penalty;
+        if lambda.is_some() {
+            stats.penalty = step.penalty;
+        }
         let grads = step.gradients(&self.critic, &self.device.clone().inner());
         stats.times.critic_backward += t.elapsed().as_secs_f64();
         let t = Instant::now();

@@ -9,14 +9,17 @@
 //!     the chunks our burn path uses there (4,096 points on flex, 65,536 on a GPU): what the
 //!     framework's own kernels do for these shapes;
 //! - training: one iteration (5 critic + 5 generator steps, batch 4 (or `batches`), crop 128, a
-//!   256² RGB exemplar), after one warm-up iteration, beside the generator's FLOPs of that
-//!   iteration (20 MLP passes over the batch's crops) as a floor measured now (GEMM floor on
-//!   CPU devices, matmul floor on GPUs), and the authors' PyTorch code measured on the 2-core
+//!   256² RGB exemplar), after one warm-up iteration, beside a floor measured now: on the CPU
+//!   both networks' products as bare GEMMs ([`floor`]); on GPUs the generator's FLOPs of the
+//!   iteration (20 MLP passes over the batch's crops) as the matmul floor; and the authors'
+//!   PyTorch code measured on the 2-core
 //!   reference machine (DESIGN.md) or, on a GPU, on one H100 (issue 6), not re-run here;
 //! - volumes (`volumes`): cubes painted in slabs by a 3D generator of the paper's size, beside
 //!   the same floors and the paper's 22.9 s for 512³.
 //!
 //! The benches in `benches/` print the same figures in more detail.
+
+pub mod floor;
 
 use std::time::Instant;
 
@@ -342,22 +345,27 @@ fn train_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
             let ours = time(plan.runs.min(2), || {
                 trainer.step();
             });
-            // The generator's share of the iteration's FLOPs: one forward pass per critic
-            // step, and per generator step a forward and a backward (input and weight
-            // gradients, two more passes' worth). The critic's convolutions are not in it.
-            let passes = config.critic_steps + 3 * config.generator_steps;
-            let points = passes * batch * config.crop * config.crop;
-            let gpu_device = is_gpu(device).then_some(&burn_device);
-            let kind = config.run_kind()?;
-            let shapes = config.generator_config(&kind, 3).layer_shapes();
-            let (floor_name, floor_s) =
-                floor(device, gpu_device, &shapes, points, plan.runs.min(2));
             let work = format!("train iteration (batch {batch}, crop 128)");
+            let (floor, floor_s) = if is_gpu(device) {
+                // The generator's share of the iteration's FLOPs: one forward pass per critic
+                // step, and per generator step a forward and a backward (input and weight
+                // gradients, two more passes' worth). The critic's convolutions are not in it.
+                let passes = config.critic_steps + 3 * config.generator_steps;
+                let points = passes * batch * config.crop * config.crop;
+                let shapes = config.generator_config(&config.run_kind()?, 3).layer_shapes();
+                let (name, t) = self::floor(device, Some(&burn_device), &shapes, points, 2);
+                (format!("generator {name} ({passes} MLP passes, no critic)"), t)
+            } else {
+                let products = floor::iteration_products(&config, &config.run_kind()?, 3);
+                let t = time(plan.runs.min(2), floor::run_products(&products));
+                let gflop = floor::flops(&products) / 1e9;
+                (format!("GEMM floor of both networks ({gflop:.0} GFLOP)"), t)
+            };
             emit(Row {
                 work: work.clone(),
                 device: device_name(device),
                 ours_s: ours,
-                floor: format!("generator {floor_name} ({passes} MLP passes, no critic)"),
+                floor,
                 floor_s: Some(floor_s),
             });
             let reference = if is_gpu(device) {
