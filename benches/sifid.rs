@@ -7,6 +7,7 @@
 //! cargo bench --bench sifid                            # budget "ci"
 //! IPFN_SIFID_BUDGET=quick cargo bench --bench sifid    # budget "quick"
 //! IPFN_SIFID_RECORD=1 cargo bench --bench sifid        # measure only, print the numbers to record
+//! IPFN_SIFID_RECORD=1 IPFN_SIFID_SEED=1 cargo bench --bench sifid   # another training seed
 //! ```
 //!
 //! Beside our model it evaluates, in the same run, the untrained generator (what no learning
@@ -89,7 +90,11 @@ fn main() {
     )
     .expect("config parses");
     config.iterations = base.iterations;
-    config.seed = base.seed;
+    // Other training seeds measure the spread a threshold's margin must cover.
+    config.seed = match std::env::var("IPFN_SIFID_SEED") {
+        Ok(seed) => seed.parse().expect("IPFN_SIFID_SEED is a number"),
+        Err(_) => base.seed,
+    };
     let exemplar_path = root().join(&base.exemplar);
     let exemplar = ipfn::exemplar::read_exemplar(&exemplar_path).expect("exemplar");
 
@@ -98,7 +103,7 @@ fn main() {
         base.config,
         base.exemplar,
         base.iterations,
-        base.seed,
+        config.seed,
         base.samples,
         exemplar.width,
         exemplar.height

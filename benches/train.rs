@@ -62,7 +62,10 @@ fn main() {
     let exemplar = root.join("exemplars/honeycomb.png");
     let configs: Vec<PathBuf> = match std::env::var("IPFN_BENCH_CONFIG") {
         Ok(path) => vec![path.into()],
-        Err(_) => vec![root.join("configs/quick.toml"), root.join("configs/default.toml")],
+        Err(_) => vec![
+            root.join("configs/quick.toml"),
+            root.join("configs/default.toml"),
+        ],
     };
     println!(
         "training on the CPU ({} threads), honeycomb exemplar, median of {runs}",
@@ -81,14 +84,14 @@ fn main() {
         let kind = config.run_kind().unwrap();
         let products = floor::iteration_products(&config, &kind, 3);
         let floor_s = ipfn::bench::time(runs, floor::run_products(&products));
-        let authors = (name == "default.toml")
-            .then(|| {
-                format!(
-                    "{AUTHORS_ITERATION_S:.1} s (reference) | {:.1}x",
-                    AUTHORS_ITERATION_S / fused
-                )
-            })
-            .unwrap_or_else(|| "- | -".into());
+        let authors = if name == "default.toml" {
+            format!(
+                "{AUTHORS_ITERATION_S:.1} s (reference) | {:.1}x",
+                AUTHORS_ITERATION_S / fused
+            )
+        } else {
+            "- | -".into()
+        };
         println!(
             "| {name} (batch {}, crop {}, {}x{}) | {fused:.3} s | {framework:.3} s | {floor_s:.3} s ({:.0} GFLOP) | {:.2}x | {authors} |",
             config.batch,

@@ -26,7 +26,8 @@ pub fn iteration_products(
         inputs = w;
     }
     let forward = |n: usize| -> Vec<_> { layers.iter().map(|&(p, c, o)| (n * p, o, c)).collect() };
-    let transposed = |n: usize| -> Vec<_> { layers.iter().map(|&(p, c, o)| (n * p, c, o)).collect() };
+    let transposed =
+        |n: usize| -> Vec<_> { layers.iter().map(|&(p, c, o)| (n * p, c, o)).collect() };
     let weights = |n: usize| -> Vec<_> { layers.iter().map(|&(p, c, o)| (o, c, n * p)).collect() };
     let mlp = generator.layer_shapes();
     let g_forward: Vec<_> = mlp.iter().map(|&(i, o)| (points, o, i)).collect();
@@ -61,12 +62,16 @@ pub fn iteration_products(
 
 /// FLOPs of `products`.
 pub fn flops(products: &[(usize, usize, usize)]) -> f64 {
-    products.iter().map(|&(m, n, k)| 2.0 * (m * n * k) as f64).sum()
+    products
+        .iter()
+        .map(|&(m, n, k)| 2.0 * (m * n * k) as f64)
+        .sum()
 }
 
 /// Runs every product once on buffers allocated up front (each `gemm` call on all cores).
 pub fn run_products(products: &[(usize, usize, usize)]) -> impl FnMut() + '_ {
-    let largest = |f: fn(&(usize, usize, usize)) -> usize| products.iter().map(f).max().unwrap_or(0);
+    let largest =
+        |f: fn(&(usize, usize, usize)) -> usize| products.iter().map(f).max().unwrap_or(0);
     let mut dst = vec![0f32; largest(|&(m, n, _)| m * n)];
     let lhs = vec![0.5f32; largest(|&(m, _, k)| m * k)];
     let rhs = vec![0.01f32; largest(|&(_, n, k)| n * k)];

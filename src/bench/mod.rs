@@ -352,9 +352,14 @@ fn train_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
                 // gradients, two more passes' worth). The critic's convolutions are not in it.
                 let passes = config.critic_steps + 3 * config.generator_steps;
                 let points = passes * batch * config.crop * config.crop;
-                let shapes = config.generator_config(&config.run_kind()?, 3).layer_shapes();
+                let shapes = config
+                    .generator_config(&config.run_kind()?, 3)
+                    .layer_shapes();
                 let (name, t) = self::floor(device, Some(&burn_device), &shapes, points, 2);
-                (format!("generator {name} ({passes} MLP passes, no critic)"), t)
+                (
+                    format!("generator {name} ({passes} MLP passes, no critic)"),
+                    t,
+                )
             } else {
                 let products = floor::iteration_products(&config, &config.run_kind()?, 3);
                 let t = time(plan.runs.min(2), floor::run_products(&products));
