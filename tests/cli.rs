@@ -300,7 +300,7 @@ fn bench_prints_ours_beside_a_floor_measured_in_the_same_run() {
         &table,
         "train iteration (batch 1, crop 128)",
         "flex",
-        "generator GEMM floor (20 MLP passes",
+        "GEMM floor of both networks",
     );
     has_floor(&table, "volume 8³ (3D 10x128 MLP)", "flex", "matmul floor");
     assert_error(&ipfn(dir.path(), &["bench", "--sizes", "0"]), &["--sizes"]);

@@ -131,11 +131,14 @@ impl IterationStats {
 pub struct StepTimes {
     /// Real crops and the critic's fake crops (generator forward without gradient).
     pub critic_data: f64,
-    /// Critic on real and fake crops, and the exact gradient penalty.
+    /// Through the framework: the critic on real and fake crops, and the exact gradient
+    /// penalty. Fused (CPU): the critic's weights and the crops read into host buffers.
     pub critic_forward: f64,
+    /// Through the framework: autodiff. Fused: the loss, penalty and every gradient.
     pub critic_backward: f64,
     pub critic_update: f64,
-    /// Generator forward with gradient, and the critic on its output.
+    /// Generator forward (with gradient, through the framework), and the critic on its output
+    /// (fused: with its input gradient).
     pub generator_forward: f64,
     pub generator_backward: f64,
     pub generator_update: f64,
