@@ -10,6 +10,7 @@ use std::time::Duration;
 use burn::prelude::*;
 use common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
+use ipfn::device::DeviceChoice;
 use ipfn::train::{TrainConfig, Trainer};
 
 #[test]
@@ -291,7 +292,7 @@ fn it_learns_the_period_of_stripes() {
         &device,
     )
     .unwrap();
-    let untrained = trainer.generator().valid();
+    let untrained = trainer.model().1;
     while trainer.iteration < config.iterations {
         trainer.step();
     }
@@ -308,25 +309,23 @@ fn it_learns_the_period_of_stripes() {
         k[1]
     );
 
-    let critic = trainer.critic().valid();
-    let inner = device.clone();
-    let gap = |g: &ipfn::generator::Generator| {
-        let mut total = 0.0;
-        for s in 0..8u64 {
-            let real = trainer.real_batch(&[1_000_000, s]).inner();
-            let fake = trainer.fake_batch(g, &inner, &[1_000_000, s]);
-            total +=
-                (critic.forward(real).mean() - critic.forward(fake).mean()).into_scalar::<f32>();
-        }
-        total / 8.0
+    // The trained generator paints stripes much closer to the exemplar than the untrained one
+    // (SIFID, the project's metric). (An earlier check asked the trained critic to rate the
+    // trained generator above the untrained one: a WGAN critic's value on inputs it has not
+    // seen for 300 iterations is an extrapolation, and it flipped between trajectories that
+    // all learned K within 3%.)
+    let reference = ipfn::exemplar::read_exemplar(&d.join("stripes.png")).unwrap();
+    let (gc, trained) = trainer.model();
+    let sifid = |w: &ipfn::generator::GeneratorWeights| {
+        ipfn::metrics::sifid_of_model(&gc, w, &reference, 4, 0, DeviceChoice::Cpu)
+            .unwrap()
+            .mean
     };
-    let (w_trained, w_untrained) = (gap(&trainer.generator().valid()), gap(&untrained));
-    eprintln!(
-        "K = {k:?}; Wasserstein estimate: trained {w_trained:.3}, untrained {w_untrained:.3}"
-    );
+    let (trained, untrained) = (sifid(&trained), sifid(&untrained));
+    eprintln!("K = {k:?}; SIFID: trained {trained:.2}, untrained {untrained:.2}");
     assert!(
-        w_trained < w_untrained,
-        "trained {w_trained} should beat untrained {w_untrained}"
+        trained < 0.5 * untrained,
+        "trained SIFID {trained} should be under half the untrained {untrained}"
     );
 }
 
