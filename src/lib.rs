@@ -44,6 +44,8 @@ pub mod procedural;
 pub mod sample;
 pub mod stop;
 pub mod synth;
+#[cfg(test)]
+pub(crate) mod testing;
 pub mod train;
 pub mod view;
 

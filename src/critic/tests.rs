@@ -295,17 +295,8 @@ fn fused_step_matches_autodiff(case: Case) {
     assert!((step.wasserstein - expected_w).abs() < 1e-4 * expected_w.abs().max(1.0));
     assert!((step.penalty - expected_p).abs() < 1e-4 * expected_p.abs().max(1.0));
     let close = |name: &str, got: &[f32], want: Vec<f32>| {
-        let scale = want.iter().fold(0f32, |m, v| m.max(v.abs())).max(1e-6);
-        let worst = got
-            .iter()
-            .zip(&want)
-            .fold(0f32, |m, (g, w)| m.max((g - w).abs()));
-        eprintln!("{}D {name}: worst {:e} of {scale:e}", case.axes, worst);
-        assert_eq!(got.len(), want.len(), "{name}: length");
-        assert!(
-            worst < 1e-4 * scale,
-            "{name}: fused differs by {worst} (scale {scale})"
-        );
+        let (worst, scale) = crate::testing::assert_gradient_close(name, got, &want);
+        eprintln!("{}D {name}: worst {worst:e} of {scale:e}", case.axes);
     };
     for (i, (conv, (w, b))) in critic.convs.iter().zip(&step.convs).enumerate() {
         let gw = conv.weight.val().grad(&grads).unwrap();

@@ -252,16 +252,7 @@ mod tests {
             .collect();
         let grads = gradients(&weights, &scale, &groups);
         let close = |name: &str, got: &[f32], want: Vec<f32>| {
-            let scale = want.iter().fold(0f32, |m, v| m.max(v.abs())).max(1e-6);
-            let worst = got
-                .iter()
-                .zip(&want)
-                .fold(0f32, |m, (g, w)| m.max((g - w).abs()));
-            assert_eq!(got.len(), want.len(), "{name}");
-            assert!(
-                worst < 1e-4 * scale,
-                "{dims}D {name}: differs by {worst} of {scale}"
-            );
+            crate::testing::assert_gradient_close(&format!("{dims}D {name}"), got, &want);
         };
         let grad = |t: Tensor<2>| t.grad(&autodiff).unwrap().try_into_vec_as::<f32>().unwrap();
         for (l, (layer, (dw, db))) in generator.layers.iter().zip(&grads.layers).enumerate() {
