@@ -6,7 +6,7 @@
 //! - [`network`]: the network (integer first-layer frequencies, SIREN hidden layers, stages).
 //! - [`fused`]: its CPU forward with exact tangents and hand-written backward (`gemm`).
 //! - [`reference`]: the same with burn tensors and autodiff, on any device.
-//! - [`target`]: the Poisson seam loss's targets (colours, Sobel gradients, λ, masks), batches.
+//! - [`target`]: the Poisson seam loss's targets (colours, gradients, λ, masks), batches.
 //! - [`run`]: the fitting loop, run folder, checkpoints and resume.
 //! - [`render`]: painting the tile at any size and level of detail.
 //! - [`crossfade`]: the classic "make seamless" filter, for comparison.
