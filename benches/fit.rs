@@ -10,7 +10,9 @@
 //! Photos: `IPFN_FIT_PHOTOS`, else the DTD photographs in `../shared/exemplars/` where that
 //! folder exists, then the shipped `exemplars/honeycomb.png`, `bricks.png` and `weave.png`.
 //! PSNR is over the whole tile and over its interior (outside the seam band, where the fit
-//! keeps the photo's colours); the seam score is the tile laid 2x2 (about 1 is seamless).
+//! keeps the photo's colours); the seam score is the tile laid 2x2 (about 1 is seamless), beside
+//! the range the photo's own lines score in (`line_score_spread`: what a seam that shows no more
+//! than a line of the photo scores).
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -22,7 +24,7 @@ use ipfn::fit::fused::{CHUNK, Stage};
 use ipfn::fit::target::seam_mask;
 use ipfn::fit::{FitConfig, Fitter, psnr};
 use ipfn::generator::fused::matmul_into;
-use ipfn::metrics::seam_score;
+use ipfn::metrics::{line_score_spread, seam_score};
 use rayon::prelude::*;
 
 fn photos() -> Vec<PathBuf> {
@@ -52,6 +54,8 @@ struct Row {
     fit: [f64; 3],
     crossfade: [f64; 3],
     photo_seam: f64,
+    /// The photo's own lines scored as seams: "p5 to p95".
+    photo_lines: String,
 }
 
 /// PSNR whole, PSNR interior and the 2x2 seam score of `tile` against `photo`.
@@ -94,6 +98,9 @@ fn measure(path: &Path, budget: Duration, scratch: &Path) -> ipfn::Result<Row> {
         fit: scores(&tile, &photo, &lambda),
         crossfade: scores(&crossfade.values, &photo, &lambda),
         photo_seam: seam_score(&photo.values, h, w, photo.channels)?.overall,
+        photo_lines: line_score_spread(&photo.values, h, w, photo.channels)
+            .map(|l| format!("{:.2} to {:.2}", l.p5, l.p95))
+            .unwrap_or_default(),
     })
 }
 
@@ -199,15 +206,15 @@ fn main() -> ipfn::Result<()> {
     );
     println!();
     println!(
-        "| photo | size | params / pixels | fit s | fit PSNR dB (interior) | fit seam 2x2 | cross-fade PSNR dB (interior) | cross-fade seam 2x2 | photo seam 2x2 |"
+        "| photo | size | params / pixels | fit s | fit PSNR dB (interior) | fit seam 2x2 | cross-fade PSNR dB (interior) | cross-fade seam 2x2 | photo seam 2x2 | photo's own lines (5-95%) |"
     );
-    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     let mut first = None;
     for photo in photos() {
         first.get_or_insert(photo.clone());
         match measure(&photo, budget, scratch.path()) {
             Ok(r) => println!(
-                "| {} | {} | {} / {} = {:.2} | {:.0} | {:.2} ({:.2}) | {:.3} | {:.2} ({:.2}) | {:.3} | {:.3} |",
+                "| {} | {} | {} / {} = {:.2} | {:.0} | {:.2} ({:.2}) | {:.3} | {:.2} ({:.2}) | {:.3} | {:.3} | {} |",
                 r.name,
                 r.size,
                 r.params,
@@ -220,16 +227,19 @@ fn main() -> ipfn::Result<()> {
                 r.crossfade[0],
                 r.crossfade[1],
                 r.crossfade[2],
-                r.photo_seam
+                r.photo_seam,
+                r.photo_lines
             ),
-            Err(e) => println!("| {} | error: {e} | | | | | | | |", photo.display()),
+            Err(e) => println!("| {} | error: {e} | | | | | | | | |", photo.display()),
         }
     }
     println!(
-        "| paper (RTX 3090, 512², 500 epochs): 3 hidden of 256 | 512x512 | | 23.8 | 32.51 | | | | |"
+        "| paper (RTX 3090, 512², 500 epochs): 3 hidden of 256 | 512x512 | | 23.8 | 32.51 | | | | | |"
     );
-    println!("| paper: 1 hidden of 512, band limit 64 | 512x512 | | | 36.38 | | | | |");
-    println!("| paper: headline tile | 1024x1024 | 855,572 / 1,048,576 = 0.82 | | 31.8 | | | | |");
+    println!("| paper: 1 hidden of 512, band limit 64 | 512x512 | | | 36.38 | | | | | |");
+    println!(
+        "| paper: headline tile | 1024x1024 | 855,572 / 1,048,576 = 0.82 | | 31.8 | | | | | |"
+    );
     if let Some(photo) = first {
         step_against_floor(&photo, scratch.path())?;
     }

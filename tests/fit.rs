@@ -95,6 +95,15 @@ fn a_photo_that_does_not_tile_becomes_a_seamless_tile() {
         (0.85..1.2).contains(&tile),
         "the tile's seam score is {tile}"
     );
+    let lines = &report["seam_photo_lines"];
+    let (p5, p95) = (
+        lines["p5"].as_f64().unwrap(),
+        lines["p95"].as_f64().unwrap(),
+    );
+    assert!(
+        p5 < 1.0 && 1.0 < p95 && photo > p95,
+        "the photo's own lines score {p5} to {p95}, its wrap {photo}"
+    );
     assert!(
         psnr > 24.0,
         "the tile is far from the photo: PSNR {psnr:.2} dB"

@@ -178,6 +178,7 @@ fn eval_tile(
     let interior = crate::fit::psnr(&tile, &photo.values, c, |i| lambda[i] == 0.0);
     let seam = crate::metrics::seam_score(&one, period[0], period[1], c)?;
     let photo_seam = crate::metrics::seam_score(&photo.values, h, w, c)?;
+    let lines = crate::metrics::line_score_spread(&photo.values, h, w, c);
     if args.json {
         let out = serde_json::json!({
             "model": description,
@@ -185,6 +186,7 @@ fn eval_tile(
             "psnr_interior": interior,
             "seam_tile": seam,
             "seam_photo": photo_seam,
+            "seam_photo_lines": lines,
         });
         println!("{out}");
         return Ok(());
@@ -198,5 +200,20 @@ fn eval_tile(
         "seam score     {:.3} for the tile laid 2x2 (columns {:.3}, rows {:.3}); the photo laid 2x2: {:.3}. About 1 is seamless.",
         seam.overall, seam.columns, seam.rows, photo_seam.overall
     );
+    if let Some(l) = lines {
+        println!(
+            "               the photo's own lines score {:.2} to {:.2} (5th to 95th percentile, median {:.2}): the tile's seam {} a line of the photo",
+            l.p5,
+            l.p95,
+            l.median,
+            if l.holds(seam.overall) {
+                "shows no more than"
+            } else if seam.overall < l.p5 {
+                "is softer than"
+            } else {
+                "shows more than"
+            }
+        );
+    }
     Ok(())
 }

@@ -332,12 +332,16 @@ fn write_outputs(
             .collect()
     };
     let seam = crate::metrics::seam_score(&one, period[0], period[1], c)?;
+    let lines = match crate::metrics::line_score_spread(&photo.values, h, w, c) {
+        Some(l) => format!(" (the photo's own lines: {:.2} to {:.2})", l.p5, l.p95),
+        None => String::new(),
+    };
     let written: Vec<String> = outputs
         .iter()
         .map(|o| o.path.display().to_string())
         .collect();
     say(format!(
-        "fitted in {seconds:.1} s: PSNR {whole:.2} dB (interior {interior:.2} dB), seam score 2x2 {:.3}; wrote {} and {} (paint any size: ipfn synth --model {})",
+        "fitted in {seconds:.1} s: PSNR {whole:.2} dB (interior {interior:.2} dB), seam score 2x2 {:.3}{lines}; wrote {} and {} (paint any size: ipfn synth --model {})",
         seam.overall,
         written.join(", "),
         model.display(),

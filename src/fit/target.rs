@@ -257,7 +257,10 @@ mod tests {
         let g = gradients(&ramp);
         // Every pixel, the first and last columns included: odd reflection continues the ramp.
         for p in 0..64 {
-            assert!(g[p * 2].abs() < 1e-6 && (g[p * 2 + 1] - 0.1).abs() < 1e-6, "{p}");
+            assert!(
+                g[p * 2].abs() < 1e-6 && (g[p * 2 + 1] - 0.1).abs() < 1e-6,
+                "{p}"
+            );
         }
     }
 }

@@ -202,6 +202,36 @@ mod tests {
     }
 
     #[test]
+    fn a_photos_own_lines_score_about_one_and_its_wrap_does_not() {
+        // Noise on a ramp across the columns: every inner line is like its neighbours, the wrap
+        // (ramp's end to its start) is a step.
+        let (h, w) = (48, 64);
+        let mut state = 7u64;
+        let v: Vec<f32> = (0..h * w)
+            .map(|i| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let noise = (state >> 40) as f32 / (1u64 << 24) as f32;
+                0.2 * noise + (i % w) as f32 / w as f32
+            })
+            .collect();
+        let spread = line_score_spread(&v, h, w, 1).unwrap();
+        assert!(
+            spread.p5 < spread.median && spread.median < spread.p95,
+            "{spread:?}"
+        );
+        assert!((spread.median - 1.0).abs() < 0.1, "{spread:?}");
+        assert!(spread.holds(spread.median));
+        let wrap = seam_score(&v, h, w, 1).unwrap().overall;
+        assert!(
+            !spread.holds(wrap) && wrap > spread.p95,
+            "{wrap} {spread:?}"
+        );
+        assert!(line_score_spread(&v[..17 * w], 17, w, 1).is_none());
+    }
+
+    #[test]
     fn dominant_period_finds_the_stripe_spacing() {
         let (h, w) = (64, 128);
         let v: Vec<f32> = (0..h * w)
