@@ -118,7 +118,8 @@ impl ScoreSpread {
 /// The seam score an image's own lines get: every pair of neighbouring columns inside
 /// `[height, width, channels]` (with [`SEAM_BAND`] lines on each side) scored as if it were the
 /// vertical seam, every pair of neighbouring rows as the horizontal one, and `overall` over every
-/// (column pair, row pair) combination, as [`seam_score`] pools its two seams.
+/// (column pair, row pair) combination (every few row pairs past a million), as
+/// [`seam_score`] pools its two seams.
 ///
 /// A line inside a photo is no seam at all, so this is the range a seamless tile of the photo's
 /// content scores in: one tile's score depends on what its seam happens to cross (on DTD's
@@ -161,9 +162,15 @@ pub fn line_score_spread(
             .collect()
     };
     let (cols, rows) = (pairs(&col_steps), pairs(&row_steps));
+    // At most about a million combinations: every `stride`-th row pair with each column pair.
+    let stride = (cols.len() * rows.len()).div_ceil(1 << 20).max(1);
     let mut scores: Vec<f64> = cols
         .iter()
-        .flat_map(|&(sc, ic)| rows.iter().map(move |&(sr, ir)| (sc + sr) / (ic + ir)))
+        .flat_map(|&(sc, ic)| {
+            rows.iter()
+                .step_by(stride)
+                .map(move |&(sr, ir)| (sc + sr) / (ic + ir))
+        })
         .filter(|v| v.is_finite())
         .collect();
     if scores.is_empty() {
