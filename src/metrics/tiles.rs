@@ -47,26 +47,9 @@ pub fn seam_score_of_tiles(
     }
     let (mut seam_c, mut inner_c, mut seam_r, mut inner_r) = (0.0, 0.0, 0.0, 0.0);
     for tile in tiles {
-        let at = |y: usize, x: usize, c: usize| tile[(y * width + x) * channels + c] as f64;
-        // Mean absolute step between two columns (or rows), over the other axis.
-        let col_step = |x0: usize, x1: usize| -> f64 {
-            let mut s = 0.0;
-            for y in 0..height {
-                for c in 0..channels {
-                    s += (at(y, x1, c) - at(y, x0, c)).abs();
-                }
-            }
-            s / (height * channels) as f64
-        };
-        let row_step = |y0: usize, y1: usize| -> f64 {
-            let mut s = 0.0;
-            for x in 0..width {
-                for c in 0..channels {
-                    s += (at(y1, x, c) - at(y0, x, c)).abs();
-                }
-            }
-            s / (width * channels) as f64
-        };
+        let shape = [height, width, channels];
+        let col_step = |x0: usize, x1: usize| column_step(tile, shape, x0, x1);
+        let row_step = |y0: usize, y1: usize| row_step(tile, shape, y0, y1);
         // (seam step, mean step of the lines beside it) along an axis of length n.
         let measure = |n: usize, step: &dyn Fn(usize, usize) -> f64| -> (f64, f64) {
             let band = SEAM_BAND.min((n - 2) / 2);
@@ -131,25 +114,13 @@ pub fn line_score_spread(
     width: usize,
     channels: usize,
 ) -> Option<ScoreSpread> {
-    let at = |y: usize, x: usize, c: usize| image[(y * width + x) * channels + c] as f64;
+    let shape = [height, width, channels];
     // Mean absolute step across each boundary between neighbouring lines.
-    let col_steps: Vec<f64> = (0..width.saturating_sub(1))
-        .map(|x| {
-            let s: f64 = (0..height)
-                .flat_map(|y| (0..channels).map(move |c| (y, c)))
-                .map(|(y, c)| (at(y, x + 1, c) - at(y, x, c)).abs())
-                .sum();
-            s / (height * channels) as f64
-        })
+    let col_steps: Vec<f64> = (1..width)
+        .map(|x| column_step(image, shape, x - 1, x))
         .collect();
-    let row_steps: Vec<f64> = (0..height.saturating_sub(1))
-        .map(|y| {
-            let s: f64 = (0..width)
-                .flat_map(|x| (0..channels).map(move |c| (x, c)))
-                .map(|(x, c)| (at(y + 1, x, c) - at(y, x, c)).abs())
-                .sum();
-            s / (width * channels) as f64
-        })
+    let row_steps: Vec<f64> = (1..height)
+        .map(|y| row_step(image, shape, y - 1, y))
         .collect();
     // (step, mean step of the SEAM_BAND boundaries on each side) per inner boundary.
     let pairs = |steps: &[f64]| -> Vec<(f64, f64)> {
@@ -183,6 +154,30 @@ pub fn line_score_spread(
         median: q(0.5),
         p95: q(0.95),
     })
+}
+
+/// Mean absolute step from column `x0` to column `x1` of `image` `[height, width, channels]`,
+/// over its rows and channels.
+fn column_step(image: &[f32], [height, width, channels]: [usize; 3], x0: usize, x1: usize) -> f64 {
+    let at = |y: usize, x: usize, c: usize| image[(y * width + x) * channels + c] as f64;
+    let mut s = 0.0;
+    for y in 0..height {
+        for c in 0..channels {
+            s += (at(y, x1, c) - at(y, x0, c)).abs();
+        }
+    }
+    s / (height * channels) as f64
+}
+
+/// Mean absolute step from row `y0` to row `y1`, over its columns and channels.
+fn row_step(image: &[f32], [_, width, channels]: [usize; 3], y0: usize, y1: usize) -> f64 {
+    let line = |y: usize| &image[y * width * channels..(y + 1) * width * channels];
+    let s: f64 = line(y0)
+        .iter()
+        .zip(line(y1))
+        .map(|(a, b)| (*b as f64 - *a as f64).abs())
+        .sum();
+    s / (width * channels) as f64
 }
 
 /// The dominant period (pixels) along rows (vertical, `[0]`) and columns (horizontal, `[1]`)
