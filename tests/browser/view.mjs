@@ -84,7 +84,9 @@ if (mode === "plane") {
 } else if (mode === "run") {
   await page.goto(url);
   await page.waitForFunction(() => document.querySelectorAll("#plots polyline").length >= 3
-    && [...document.querySelectorAll("#previews img")].some((i) => i.complete && i.naturalWidth > 0),
+    // Every preview settled (loaded or failed), not just the first: the strip is counted next.
+    && [...document.querySelectorAll("#previews img")].some((i) => i.complete && i.naturalWidth > 0)
+    && [...document.querySelectorAll("#previews img")].every((i) => i.complete),
   null, { timeout: Number(process.env.WAIT_MS || 120000) });
   record.run = await page.evaluate(() => ({
     series: [...document.querySelectorAll("#plots polyline")].map((p) => p.dataset.series),
