@@ -471,6 +471,42 @@ fn fused_steps_follow_the_framework() {
     assert!(diff < 1e-4, "critics differ by {diff}");
 }
 
+/// K steps at `k_lr` times the weights' rate: Adam's first step moves each parameter by its
+/// rate (times `|g| / (|g| + eps)`), so one generator step moves K by `lr · k_lr` and no weight
+/// by more than `lr`.
+#[test]
+fn k_learns_at_its_own_rate() {
+    let dir = common::tiny_run_folder();
+    let config = TrainConfig {
+        batch: 2,
+        crop: 16,
+        critic_widths: vec![4, 8, 8, 8],
+        hidden_layers: 2,
+        width: 16,
+        critic_steps: 1,
+        generator_steps: 1,
+        lr: 1e-4,
+        k_lr: 10.0,
+        ..TrainConfig::default()
+    };
+    let run = dir.path().join("run");
+    let mut t = Trainer::new(config, dir.path().join("ex.png"), &run, &Device::flex()).unwrap();
+    let before = t.model().1;
+    t.step();
+    let after = t.model().1;
+    for (k0, k1) in before.k.iter().zip(&after.k) {
+        let moved = (k1 - k0).abs();
+        assert!(
+            (moved - 1e-3).abs() < 2e-5,
+            "K moved {moved}, not lr · k_lr = 1e-3"
+        );
+    }
+    for (x, y) in before.layers.iter().zip(&after.layers) {
+        let moved = common::max_abs_diff(&x.weight, &y.weight);
+        assert!(moved <= 1.01e-4, "a weight moved {moved}, more than lr");
+    }
+}
+
 #[test]
 fn resize_keeps_every_channel() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("exemplars/honeycomb.png");

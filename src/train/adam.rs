@@ -13,6 +13,8 @@ use crate::checkpoint::Checkpoint;
 #[derive(Debug, Clone)]
 pub struct Adam {
     pub lr: f64,
+    /// Parameters named `k` (the generator's K) step at `lr * k_lr`.
+    pub k_lr: f64,
     pub beta1: f64,
     pub beta2: f64,
     pub eps: f64,
@@ -22,10 +24,23 @@ pub struct Adam {
     moments: BTreeMap<String, (Tensor<1>, Tensor<1>)>,
 }
 
+/// The learning rate of step `iteration` (from 0) of a run of `total`: `lr`, then falling
+/// linearly over the last `decay` fraction of the run, to `lr / (decay · total)` at its last
+/// step.
+pub fn scheduled_lr(lr: f64, decay: f64, iteration: u64, total: u64) -> f64 {
+    let (t, total) = (iteration as f64, total as f64);
+    let start = total * (1.0 - decay);
+    if decay <= 0.0 || t < start {
+        return lr;
+    }
+    lr * ((total - t) / (total - start)).clamp(0.0, 1.0)
+}
+
 impl Adam {
     pub fn new(lr: f64, beta1: f64, beta2: f64) -> Self {
         Self {
             lr,
+            k_lr: 1.0,
             beta1,
             beta2,
             eps: 1e-8,
@@ -103,6 +118,7 @@ impl Adam {
         &self,
         grad: Tensor<1>,
         moments: Option<(Tensor<1>, Tensor<1>)>,
+        lr: f64,
         bias1: f64,
         bias2: f64,
     ) -> (Tensor<1>, Tensor<1>, Tensor<1>) {
@@ -115,7 +131,7 @@ impl Adam {
             None => (vec![0.0; n], vec![0.0; n]),
         };
         let (b1, b2, eps) = (self.beta1 as f32, self.beta2 as f32, self.eps as f32);
-        let (root2, step) = (bias2.sqrt() as f32, (self.lr / bias1) as f32);
+        let (root2, step) = (bias2.sqrt() as f32, (lr / bias1) as f32);
         let mut update = vec![0f32; n];
         for i in 0..n {
             m[i] = m[i] * b1 + g[i] * (1.0 - b1);
@@ -156,14 +172,19 @@ impl ModuleMapper for AdamMapper<'_> {
         let t = a.steps as i32;
         let bias1 = 1.0 - a.beta1.powi(t);
         let bias2 = 1.0 - a.beta2.powi(t);
+        let lr = if self.path.last().is_some_and(|p| p == "k") {
+            a.lr * a.k_lr
+        } else {
+            a.lr
+        };
         let (update, m, v) = if grad.device() == Device::flex() {
-            a.update_on_host(grad, moments, bias1, bias2)
+            a.update_on_host(grad, moments, lr, bias1, bias2)
         } else {
             let (m, v) = moments.unwrap_or_else(|| (grad.zeros_like(), grad.zeros_like()));
             let m = m * a.beta1 + grad.clone() * (1.0 - a.beta1);
             let v = v * a.beta2 + grad.powi_scalar(2) * (1.0 - a.beta2);
             let denom = v.clone().sqrt() / bias2.sqrt() + a.eps;
-            (m.clone() / denom * (a.lr / bias1), m, v)
+            (m.clone() / denom * (lr / bias1), m, v)
         };
         let update = update.reshape(shape);
         a.moments.insert(path, (m, v));
@@ -173,5 +194,23 @@ impl ModuleMapper for AdamMapper<'_> {
             updated = updated.require_grad();
         }
         Param::from_mapped_value(id, updated, mapper)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::scheduled_lr;
+
+    #[test]
+    fn the_rate_holds_then_falls_linearly_to_the_last_step() {
+        // Off: constant.
+        assert_eq!(scheduled_lr(1e-3, 0.0, 99, 100), 1e-3);
+        // The second half of 100 iterations: constant to 49, then 50/50, 49/50, ..., 1/50.
+        assert_eq!(scheduled_lr(1e-3, 0.5, 49, 100), 1e-3);
+        assert_eq!(scheduled_lr(1e-3, 0.5, 50, 100), 1e-3);
+        assert!((scheduled_lr(1e-3, 0.5, 75, 100) - 0.5e-3).abs() < 1e-15);
+        assert!((scheduled_lr(1e-3, 0.5, 99, 100) - 1e-3 / 50.0).abs() < 1e-15);
+        // The whole run decays from the first step.
+        assert!((scheduled_lr(1.0, 1.0, 1, 4) - 0.75).abs() < 1e-15);
     }
 }

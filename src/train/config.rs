@@ -29,6 +29,15 @@ pub struct TrainConfig {
     pub generator_steps: usize,
     /// Adam learning rate and betas, for both networks.
     pub lr: f64,
+    /// The last this fraction of the run's iterations takes the learning rate linearly down to
+    /// 0 (`0.5`: the second half), so the schedule ends with the planned total (or the time
+    /// budget's plan); 0 keeps it constant.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub lr_decay: f64,
+    /// The generator's K learns at `k_lr` times `lr` (its own rate: K is two numbers that the
+    /// whole image's layout hangs on); 1 is the paper's single rate.
+    #[serde(skip_serializing_if = "is_unit")]
+    pub k_lr: f64,
     pub beta1: f64,
     pub beta2: f64,
     /// Weight of the gradient penalty.
@@ -106,6 +115,10 @@ fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }
 
+fn is_unit(v: &f64) -> bool {
+    *v == 1.0
+}
+
 fn is_default_sdf_scale(v: &f32) -> bool {
     *v == DEFAULT_SDF_SCALE
 }
@@ -123,6 +136,8 @@ impl Default for TrainConfig {
             critic_steps: 5,
             generator_steps: 5,
             lr: 1e-4,
+            lr_decay: 0.0,
+            k_lr: 1.0,
             beta1: 0.5,
             beta2: 0.9,
             gp_lambda: 10.0,
@@ -354,6 +369,18 @@ impl TrainConfig {
                 "lr and resize must be positive, gp_lambda and shift not negative, and all finite"
             ));
         }
+        if !(0.0..=1.0).contains(&self.lr_decay) {
+            return Err(input_error!(
+                "lr_decay = {}: the decayed fraction of the run is from 0 (constant) to 1, e.g. 0.5",
+                self.lr_decay
+            ));
+        }
+        if !(self.k_lr >= 0.0 && self.k_lr.is_finite()) {
+            return Err(input_error!(
+                "k_lr = {}: K's learning rate, a multiple of lr, is finite and not negative, e.g. 10",
+                self.k_lr
+            ));
+        }
         if !(0.0..1.0).contains(&self.average) {
             return Err(input_error!(
                 "average = {}: the moving average's decay is at least 0 (off) and below 1, e.g. 0.99",
@@ -532,6 +559,11 @@ overrides! {
     penalty_every: usize, fixed;
     /// Adam learning rate.
     lr: f64, fixed;
+    /// Take the learning rate linearly to 0 over this last fraction of the run, e.g. 0.5; 0:
+    /// constant.
+    lr_decay: f64, fixed;
+    /// K's learning rate as a multiple of --lr, e.g. 10; 1: the same rate as the weights.
+    k_lr: f64, fixed;
     /// Seed of every random draw.
     seed: u64, fixed;
     /// Scale the exemplar first (Lanczos-3, anti-aliased), e.g. 0.5.

@@ -154,6 +154,10 @@ impl Trainer {
             iteration: it + 1,
             ..Default::default()
         };
+        let lr = super::adam::scheduled_lr(cfg.lr, cfg.lr_decay, it, cfg.iterations);
+        self.adam_critic.lr = lr;
+        self.adam_generator.lr = lr;
+        self.adam_generator.k_lr = cfg.k_lr;
         // The generator is fixed during the critic's steps: on the CPU its fakes come from the
         // fused evaluator, several times faster than the framework's forward pass.
         let fused = self
