@@ -19,6 +19,7 @@ use burn::prelude::*;
 use rayon::prelude::*;
 
 use super::{Critic, KERNEL};
+use crate::checkpoint::{Checkpoint, read_module};
 use crate::generator::fused::matmul_parallel;
 
 /// One stride-2 convolution's shape over 3 axes (depth, rows, cols); a 2D critic's depth axis
@@ -218,6 +219,9 @@ pub struct FusedCritic {
     head: Vec<f32>,
     head_bias: f32,
     slope: f32,
+    /// Which convolutions, and whether the head, have a bias parameter (a missing one is held
+    /// as zeros and never updated).
+    has_bias: (Vec<bool>, bool),
 }
 
 fn host<const D: usize>(t: Tensor<D>) -> Vec<f32> {
@@ -265,6 +269,10 @@ impl FusedCritic {
             }
         }
         let head_bias = critic.head.bias.as_ref().map_or(0.0, |b| host(b.val())[0]);
+        let has_bias = (
+            critic.convs.iter().map(|c| c.bias.is_some()).collect(),
+            critic.head.bias.is_some(),
+        );
         Self {
             layers,
             weights,
@@ -272,7 +280,68 @@ impl FusedCritic {
             head,
             head_bias,
             slope: critic.slope as f32,
+            has_bias,
         }
+    }
+
+    /// The head's weight `values` (or its gradient) reordered between the fused layout
+    /// (`[positions, channels]`) and the framework's (`[channels, positions]`).
+    fn reorder_head(&self, values: &[f32], to_framework: bool) -> Vec<f32> {
+        let last = self.layers.last().expect("critic has convolutions");
+        let (channels, positions) = (last.outputs, last.out_positions());
+        let mut out = vec![0f32; values.len()];
+        for c in 0..channels {
+            for p in 0..positions {
+                let (framework, fused) = (c * positions + p, p * channels + c);
+                if to_framework {
+                    out[framework] = values[fused];
+                } else {
+                    out[fused] = values[framework];
+                }
+            }
+        }
+        out
+    }
+
+    /// Updates every weight in place: `update(path, values, gradient)` for each parameter, by
+    /// its path in the framework critic (`convs.0.weight`, ..., `head.bias`), values and
+    /// gradient in the framework's layout. The optimiser's step on the CPU, with no copy of
+    /// the weights through the framework.
+    pub fn apply(&mut self, step: &CriticStep, mut update: impl FnMut(&str, &mut [f32], &[f32])) {
+        for (l, (w, b)) in step.convs.iter().enumerate() {
+            update(&format!("convs.{l}.weight"), &mut self.weights[l], w);
+            if self.has_bias.0[l] {
+                update(&format!("convs.{l}.bias"), &mut self.biases[l], b);
+            }
+        }
+        let mut head = self.reorder_head(&self.head, true);
+        update("head.weight", &mut head, &step.head.0);
+        self.head = self.reorder_head(&head, false);
+        if self.has_bias.1 {
+            let mut bias = [self.head_bias];
+            update("head.bias", &mut bias, &[step.head.1]);
+            self.head_bias = bias[0];
+        }
+    }
+
+    /// `critic` with these weights (its parameters' identities kept).
+    pub fn write_into(&self, critic: Critic) -> Critic {
+        let mut weights = Checkpoint::new();
+        for (l, g) in self.layers.iter().enumerate() {
+            let [td, th, tw] = g.taps;
+            let shape = vec![g.outputs, g.inputs, td, th, tw];
+            weights.insert(
+                format!("c.convs.{l}.weight"),
+                shape,
+                self.weights[l].clone(),
+            );
+            let bias = self.biases[l].clone();
+            weights.insert(format!("c.convs.{l}.bias"), vec![g.outputs], bias);
+        }
+        let head = self.reorder_head(&self.head, true);
+        weights.insert("c.head.weight", vec![head.len(), 1], head);
+        weights.insert("c.head.bias", vec![1], vec![self.head_bias]);
+        read_module(critic, "c", &weights).expect("the critic's own shapes")
     }
 
     /// Scores `x` (channels-last, `[batch · positions, channels]`), keeping what the backward
@@ -496,15 +565,8 @@ impl Gradients {
 
     /// The gradients in the framework critic's layouts (see [`CriticStep`]).
     fn into_framework(self, critic: &FusedCritic) -> CriticStep {
+        let head = critic.reorder_head(&self.head, true);
         let convs = self.weights.into_iter().zip(self.biases).collect();
-        let last = critic.layers.last().expect("critic has convolutions");
-        let (channels, positions) = (last.outputs, last.out_positions());
-        let mut head = vec![0f32; self.head.len()];
-        for c in 0..channels {
-            for p in 0..positions {
-                head[c * positions + p] = self.head[p * channels + c];
-            }
-        }
         CriticStep {
             wasserstein: 0.0,
             penalty: 0.0,

@@ -21,7 +21,28 @@ pub struct Adam {
     /// Steps taken so far (for bias correction).
     pub steps: u64,
     /// First and second moments by parameter path, flattened.
-    moments: BTreeMap<String, (Tensor<1>, Tensor<1>)>,
+    moments: BTreeMap<String, Moments>,
+}
+
+/// One parameter's moments: on the device that trains it, or on the host for the CPU, where
+/// parameters are updated in one pass over host copies ([`Adam::update_host`]).
+#[derive(Debug, Clone)]
+enum Moments {
+    Device(Tensor<1>, Tensor<1>),
+    Host(Vec<f32>, Vec<f32>),
+}
+
+impl Moments {
+    fn into_host(self) -> (Vec<f32>, Vec<f32>) {
+        match self {
+            Moments::Host(m, v) => (m, v),
+            Moments::Device(m, v) => (host(m), host(v)),
+        }
+    }
+}
+
+fn host(t: Tensor<1>) -> Vec<f32> {
+    t.try_into_vec_as::<f32>().expect("readable as f32")
 }
 
 /// The learning rate of step `iteration` (from 0) of a run of `total`: `lr`, then falling
@@ -51,7 +72,7 @@ impl Adam {
 
     /// One update of every parameter of `module` that has a gradient in `grads`.
     pub fn step<M: Module>(&mut self, module: M, grads: GradientsParams) -> M {
-        self.steps += 1;
+        self.begin_step();
         let mut mapper = AdamMapper {
             adam: self,
             grads,
@@ -60,17 +81,50 @@ impl Adam {
         module.map(&mut mapper)
     }
 
+    /// Counts one step: the step's parameters are then updated by [`Adam::update_host`].
+    pub fn begin_step(&mut self) {
+        self.steps += 1;
+    }
+
+    /// The learning rate of the parameter at `path`.
+    fn rate(&self, path: &str) -> f64 {
+        if path == "k" || path.ends_with(".k") {
+            self.lr * self.k_lr
+        } else {
+            self.lr
+        }
+    }
+
+    /// Updates the parameter at `path` (host values, flattened) by its gradient, in one pass,
+    /// for the step counted by the last [`Adam::begin_step`]. The same formula as the device
+    /// path (rounding may differ in the last bit).
+    pub fn update_host(&mut self, path: &str, param: &mut [f32], grad: &[f32]) {
+        let n = grad.len();
+        debug_assert_eq!(param.len(), n);
+        let t = self.steps as i32;
+        let (bias1, bias2) = (1.0 - self.beta1.powi(t), 1.0 - self.beta2.powi(t));
+        let (b1, b2, eps) = (self.beta1 as f32, self.beta2 as f32, self.eps as f32);
+        let (root2, step) = (bias2.sqrt() as f32, (self.rate(path) / bias1) as f32);
+        let (mut m, mut v) = match self.moments.remove(path) {
+            Some(moments) => moments.into_host(),
+            None => (vec![0.0; n], vec![0.0; n]),
+        };
+        for i in 0..n {
+            m[i] = m[i] * b1 + grad[i] * (1.0 - b1);
+            v[i] = v[i] * b2 + grad[i] * grad[i] * (1.0 - b2);
+            param[i] -= m[i] / (v[i].sqrt() / root2 + eps) * step;
+        }
+        self.moments.insert(path.to_string(), Moments::Host(m, v));
+    }
+
     /// Stores the step count and moments under `{prefix}.m.{path}` / `{prefix}.v.{path}`.
     pub fn write_to(&self, prefix: &str, checkpoint: &mut Checkpoint) {
         checkpoint
             .metadata
             .insert(format!("{prefix}.steps"), self.steps.to_string());
-        for (path, (m, v)) in &self.moments {
-            for (kind, t) in [("m", m), ("v", v)] {
-                let values = t
-                    .clone()
-                    .try_into_vec_as::<f32>()
-                    .expect("moments are readable as f32");
+        for (path, moments) in &self.moments {
+            let (m, v) = moments.clone().into_host();
+            for (kind, values) in [("m", m), ("v", v)] {
                 checkpoint.insert(
                     format!("{prefix}.{kind}.{path}"),
                     vec![values.len()],
@@ -80,7 +134,7 @@ impl Adam {
         }
     }
 
-    /// Restores what [`Adam::write_to`] stored, on `device`.
+    /// Restores what [`Adam::write_to`] stored, for parameters on `device`.
     pub fn read_from(
         &mut self,
         prefix: &str,
@@ -100,46 +154,17 @@ impl Adam {
                 break;
             };
             let v = checkpoint.tensor(&format!("{prefix}.v.{path}"), &m.shape)?;
-            let tensor = |values: &[f32]| {
-                Tensor::<1>::from_data(TensorData::new(values.to_vec(), [values.len()]), device)
+            let moments = if *device == Device::flex() {
+                Moments::Host(m.values.clone(), v.to_vec())
+            } else {
+                let tensor = |values: &[f32]| {
+                    Tensor::<1>::from_data(TensorData::new(values.to_vec(), [values.len()]), device)
+                };
+                Moments::Device(tensor(&m.values), tensor(v))
             };
-            self.moments
-                .insert(path.to_string(), (tensor(&m.values), tensor(v)));
+            self.moments.insert(path.to_string(), moments);
         }
         Ok(())
-    }
-}
-
-impl Adam {
-    /// One parameter's update on the CPU in one pass over host copies, where the framework
-    /// would make a dozen passes, each with a fresh buffer: `(update, m, v)`, as the framework
-    /// path computes them (the same formula; rounding may differ in the last bit).
-    fn update_on_host(
-        &self,
-        grad: Tensor<1>,
-        moments: Option<(Tensor<1>, Tensor<1>)>,
-        lr: f64,
-        bias1: f64,
-        bias2: f64,
-    ) -> (Tensor<1>, Tensor<1>, Tensor<1>) {
-        let device = grad.device();
-        let host = |t: Tensor<1>| t.try_into_vec_as::<f32>().expect("readable as f32");
-        let g = host(grad);
-        let n = g.len();
-        let (mut m, mut v) = match moments {
-            Some((m, v)) => (host(m), host(v)),
-            None => (vec![0.0; n], vec![0.0; n]),
-        };
-        let (b1, b2, eps) = (self.beta1 as f32, self.beta2 as f32, self.eps as f32);
-        let (root2, step) = (bias2.sqrt() as f32, (lr / bias1) as f32);
-        let mut update = vec![0f32; n];
-        for i in 0..n {
-            m[i] = m[i] * b1 + g[i] * (1.0 - b1);
-            v[i] = v[i] * b2 + g[i] * g[i] * (1.0 - b2);
-            update[i] = m[i] / (v[i].sqrt() / root2 + eps) * step;
-        }
-        let tensor = |x: Vec<f32>| Tensor::<1>::from_data(TensorData::new(x, [n]), &device);
-        (tensor(update), tensor(m), tensor(v))
     }
 }
 
@@ -168,28 +193,28 @@ impl ModuleMapper for AdamMapper<'_> {
         let n: usize = shape.iter().product();
         let grad = grad.reshape([n]);
         let path = self.path.join(".");
-        let moments = a.moments.remove(&path);
-        let t = a.steps as i32;
-        let bias1 = 1.0 - a.beta1.powi(t);
-        let bias2 = 1.0 - a.beta2.powi(t);
-        let lr = if self.path.last().is_some_and(|p| p == "k") {
-            a.lr * a.k_lr
+        let (require_grad, device) = (tensor.is_require_grad(), tensor.device());
+        let mut updated = if grad.device() == Device::flex() {
+            let mut values = tensor
+                .inner()
+                .try_into_vec_as::<f32>()
+                .expect("parameters readable as f32");
+            a.update_host(&path, &mut values, &host(grad));
+            Tensor::from_data(TensorData::new(values, shape), &device)
         } else {
-            a.lr
-        };
-        let (update, m, v) = if grad.device() == Device::flex() {
-            a.update_on_host(grad, moments, lr, bias1, bias2)
-        } else {
-            let (m, v) = moments.unwrap_or_else(|| (grad.zeros_like(), grad.zeros_like()));
+            let t = a.steps as i32;
+            let (bias1, bias2) = (1.0 - a.beta1.powi(t), 1.0 - a.beta2.powi(t));
+            let (m, v) = match a.moments.remove(&path) {
+                Some(Moments::Device(m, v)) => (m, v),
+                _ => (grad.zeros_like(), grad.zeros_like()),
+            };
             let m = m * a.beta1 + grad.clone() * (1.0 - a.beta1);
             let v = v * a.beta2 + grad.powi_scalar(2) * (1.0 - a.beta2);
             let denom = v.clone().sqrt() / bias2.sqrt() + a.eps;
-            (m.clone() / denom * (lr / bias1), m, v)
+            let update = (m.clone() / denom * (a.rate(&path) / bias1)).reshape(shape);
+            a.moments.insert(path, Moments::Device(m, v));
+            Tensor::from_inner(tensor.inner() - update)
         };
-        let update = update.reshape(shape);
-        a.moments.insert(path, (m, v));
-        let require_grad = tensor.is_require_grad();
-        let mut updated = Tensor::from_inner(tensor.inner() - update);
         if require_grad {
             updated = updated.require_grad();
         }

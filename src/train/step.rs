@@ -163,6 +163,11 @@ impl Trainer {
         let fused = self
             .fused_steps()
             .then(|| FusedGenerator::new(self.generator.weights()));
+        // On the CPU the critic's weights stay on the host through its steps (Adam updates
+        // them in place), and go back into the framework's critic once, after them.
+        let mut host_critic = fused
+            .is_some()
+            .then(|| FusedCritic::new(&self.critic, self.critic_channels(), self.crop_shape()));
         for step in 0..cfg.critic_steps as u64 {
             let t = Instant::now();
             let real = self.real_batch(&[it, step]);
@@ -185,18 +190,21 @@ impl Trainer {
             let lambda = counted
                 .is_multiple_of(cfg.penalty_every as u64)
                 .then_some(cfg.gp_lambda * cfg.penalty_every as f64);
-            if fused.is_some() {
-                self.critic_step_fused(real, fake, &alphas, lambda, &mut stats);
+            if let Some(critic) = &mut host_critic {
+                self.critic_step_fused(critic, real, fake, &alphas, lambda, &mut stats);
             } else {
                 let alpha =
                     Tensor::<1>::from_data(TensorData::new(alphas, [cfg.batch]), &self.device);
                 self.critic_step_framework(real, fake, alpha, lambda, &mut stats);
             }
         }
+        if let Some(critic) = &host_critic {
+            let t = Instant::now();
+            self.critic = critic.write_into(self.critic.clone());
+            stats.times.critic_update += t.elapsed().as_secs_f64();
+        }
         // The critic is fixed during the generator's steps.
-        let frozen = fused
-            .is_some()
-            .then(|| FusedCritic::new(&self.critic, self.critic_channels(), self.crop_shape()));
+        let frozen = host_critic;
         for step in 0..cfg.generator_steps as u64 {
             let counters = [stream::GENERATOR_FAKE, it, step];
             match &frozen {
@@ -342,10 +350,11 @@ impl Trainer {
     }
 
     /// One critic update on the CPU with the fused step ([`FusedCritic`]): the same loss and
-    /// gradients as [`Trainer::critic_step_framework`], then Adam. Its time counts as the
-    /// critic's backward, apart from reading the weights (forward).
+    /// gradients as [`Trainer::critic_step_framework`], then Adam on the host weights. Its time
+    /// counts as the critic's backward, apart from reading the crops (forward).
     fn critic_step_fused(
         &mut self,
+        critic: &mut FusedCritic,
         real: Tensor<5>,
         fake: Tensor<5>,
         alpha: &[f32],
@@ -354,8 +363,6 @@ impl Trainer {
     ) {
         let t = Instant::now();
         let shape = real.dims();
-        let [_, channels, depth, rows, cols] = shape;
-        let critic = FusedCritic::new(&self.critic, channels, [depth, rows, cols]);
         let host = |x: Tensor<5>| x.try_into_vec_as::<f32>().expect("crops readable as f32");
         let (real, fake) = (host(real), host(fake));
         stats.times.critic_forward += t.elapsed().as_secs_f64();
@@ -366,10 +373,13 @@ impl Trainer {
         if lambda.is_some() {
             stats.penalty = step.penalty;
         }
-        let grads = step.gradients(&self.critic, &self.device.clone().inner());
         stats.times.critic_backward += t.elapsed().as_secs_f64();
         let t = Instant::now();
-        self.critic = self.adam_critic.step(self.critic.clone(), grads);
+        let adam = &mut self.adam_critic;
+        adam.begin_step();
+        critic.apply(&step, |path, values, grad| {
+            adam.update_host(path, values, grad)
+        });
         stats.times.critic_update += t.elapsed().as_secs_f64();
     }
 }
