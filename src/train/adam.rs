@@ -28,7 +28,7 @@ pub struct Adam {
 /// parameters are updated in one pass over host copies ([`Adam::update_host`]).
 #[derive(Debug, Clone)]
 enum Moments {
-    Device(Tensor<1>, Tensor<1>),
+    Device(Box<(Tensor<1>, Tensor<1>)>),
     Host(Vec<f32>, Vec<f32>),
 }
 
@@ -36,7 +36,7 @@ impl Moments {
     fn into_host(self) -> (Vec<f32>, Vec<f32>) {
         match self {
             Moments::Host(m, v) => (m, v),
-            Moments::Device(m, v) => (host(m), host(v)),
+            Moments::Device(mv) => (host(mv.0), host(mv.1)),
         }
     }
 }
@@ -160,7 +160,7 @@ impl Adam {
                 let tensor = |values: &[f32]| {
                     Tensor::<1>::from_data(TensorData::new(values.to_vec(), [values.len()]), device)
                 };
-                Moments::Device(tensor(&m.values), tensor(v))
+                Moments::Device(Box::new((tensor(&m.values), tensor(v))))
             };
             self.moments.insert(path.to_string(), moments);
         }
@@ -205,14 +205,14 @@ impl ModuleMapper for AdamMapper<'_> {
             let t = a.steps as i32;
             let (bias1, bias2) = (1.0 - a.beta1.powi(t), 1.0 - a.beta2.powi(t));
             let (m, v) = match a.moments.remove(&path) {
-                Some(Moments::Device(m, v)) => (m, v),
+                Some(Moments::Device(mv)) => *mv,
                 _ => (grad.zeros_like(), grad.zeros_like()),
             };
             let m = m * a.beta1 + grad.clone() * (1.0 - a.beta1);
             let v = v * a.beta2 + grad.powi_scalar(2) * (1.0 - a.beta2);
             let denom = v.clone().sqrt() / bias2.sqrt() + a.eps;
             let update = (m.clone() / denom * (a.rate(&path) / bias1)).reshape(shape);
-            a.moments.insert(path, Moments::Device(m, v));
+            a.moments.insert(path, Moments::Device(Box::new((m, v))));
             Tensor::from_inner(tensor.inner() - update)
         };
         if require_grad {
