@@ -65,8 +65,8 @@ fn a_time_budget_plans_the_run_scores_it_and_keeps_the_best() {
         "{}",
         config.iterations
     );
-    // On the CPU the preset's scale and crop; K from 1 (the period's K is only suggested).
-    assert_eq!((config.crop, config.resize), (32, 0.5));
+    // On the CPU configs/cpu.toml's scale and crop; K from 1 (the period's K is only suggested).
+    assert_eq!((config.crop, config.resize), (32, 1.0));
     assert_eq!(config.k_init, None);
     // Every checkpoint row carries a finite score; others leave it empty.
     let metrics = std::fs::read_to_string(d.join("runs/b/metrics.csv")).unwrap();

@@ -543,6 +543,20 @@ fn shipped_presets_parse() {
     );
     let quick = read("quick.toml");
     assert!(quick.iterations > 0 && quick.crop.is_multiple_of(16));
+    // What a CPU run takes: quick.toml's network and crop at the exemplar's own scale, K at 10x
+    // the rate, and no iteration count of its own (the run keeps its time budget).
+    let cpu = read("cpu.toml");
+    assert_eq!(
+        TrainConfig {
+            resize: 0.5,
+            k_lr: 1.0,
+            iterations: quick.iterations,
+            log_every: quick.log_every,
+            ..cpu.clone()
+        },
+        quick
+    );
+    assert_eq!(cpu.iterations, TrainConfig::default().iterations);
     // The volume presets: cubic crops the 3D critic accepts.
     for name in ["porous.toml", "foam.toml"] {
         let preset = read(name);
