@@ -68,6 +68,7 @@ fn a_time_budget_plans_the_run_scores_it_and_keeps_the_best() {
     // On the CPU configs/cpu.toml's scale and crop; K from 1 (the period's K is only suggested).
     assert_eq!((config.crop, config.resize), (32, 1.0));
     assert_eq!(config.k_init, None);
+    assert_eq!(config.k_lr, 10.0, "a plain image takes K's own rate");
     // Every checkpoint row carries a finite score; others leave it empty.
     let metrics = std::fs::read_to_string(d.join("runs/b/metrics.csv")).unwrap();
     assert!(metrics.lines().next().unwrap().ends_with(",sifid"));

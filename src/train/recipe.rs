@@ -142,9 +142,16 @@ pub fn settle(
     let scale_and_crop = matches!(source, super::ExemplarSource::Image(_))
         && !explicit.contains("resize")
         && !explicit.contains("crop");
+    // K's own rate was measured on plain 2D images: solid textures, guided runs, map sets and
+    // volumes keep K at the weights' rate.
+    let plain_image = matches!(source, super::ExemplarSource::Image(_))
+        && !config.solid
+        && config.guide.is_none();
     let free: Vec<&str> = CPU_KEYS
         .into_iter()
-        .filter(|k| !explicit.contains(*k) && (scale_and_crop || !["resize", "crop"].contains(k)))
+        .filter(|k| !explicit.contains(*k))
+        .filter(|k| scale_and_crop || !["resize", "crop"].contains(k))
+        .filter(|k| plain_image || *k != "k_lr")
         .collect();
     if !on_gpu && !free.is_empty() {
         let preset = cpu_preset();
