@@ -365,19 +365,24 @@ fn trains_on_wgpu() {
     );
 }
 
-/// The critic's fake crops (fused CPU evaluator) equal the generator step's (burn), channel by
-/// channel.
-#[test]
-fn fused_and_burn_fake_crops_agree() {
-    let dir = common::tiny_run_folder();
-    let config = TrainConfig {
-        batch: 3,
+/// A network small enough to step in milliseconds: 16-pixel crops, a 2x16 generator.
+fn tiny_network(batch: usize) -> TrainConfig {
+    TrainConfig {
+        batch,
         crop: 16,
         critic_widths: vec![4, 8, 8, 8],
         hidden_layers: 2,
         width: 16,
         ..TrainConfig::default()
-    };
+    }
+}
+
+/// The critic's fake crops (fused CPU evaluator) equal the generator step's (burn), channel by
+/// channel.
+#[test]
+fn fused_and_burn_fake_crops_agree() {
+    let dir = common::tiny_run_folder();
+    let config = tiny_network(3);
     let device = Device::flex();
     let trainer = Trainer::new(
         config,
@@ -408,13 +413,8 @@ fn fused_and_burn_fake_crops_agree() {
 fn fused_steps_follow_the_framework() {
     let dir = common::tiny_run_folder();
     let config = TrainConfig {
-        batch: 3,
-        crop: 16,
-        critic_widths: vec![4, 8, 8, 8],
-        hidden_layers: 2,
-        width: 16,
         lr: 1e-3,
-        ..TrainConfig::default()
+        ..tiny_network(3)
     };
     let device = Device::flex();
     let trainer = |framework: bool| {
@@ -478,16 +478,11 @@ fn fused_steps_follow_the_framework() {
 fn k_learns_at_its_own_rate() {
     let dir = common::tiny_run_folder();
     let config = TrainConfig {
-        batch: 2,
-        crop: 16,
-        critic_widths: vec![4, 8, 8, 8],
-        hidden_layers: 2,
-        width: 16,
         critic_steps: 1,
         generator_steps: 1,
         lr: 1e-4,
         k_lr: 10.0,
-        ..TrainConfig::default()
+        ..tiny_network(2)
     };
     let run = dir.path().join("run");
     let mut t = Trainer::new(config, dir.path().join("ex.png"), &run, &Device::flex()).unwrap();

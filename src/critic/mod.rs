@@ -25,6 +25,7 @@ use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 use crate::input_error;
 
 pub mod fused;
+mod geometry;
 #[cfg(test)]
 mod tests;
 
