@@ -14,7 +14,6 @@
 //! share of `dP/dW_l = im2col(δ_{l-1})^T · (M_l ⊙ g_l)`. `tests.rs` checks every gradient
 //! against burn's autodiff of the framework critic, on 2 and 3 axes.
 
-use burn::optim::GradientsParams;
 use burn::prelude::*;
 use rayon::prelude::*;
 
@@ -463,34 +462,5 @@ impl Gradients {
             convs,
             head: (head, self.head_bias),
         }
-    }
-}
-
-impl CriticStep {
-    /// The gradients as the optimiser takes them: by parameter of `critic`, on `device` (the
-    /// plain device the autodiff device wraps).
-    pub fn gradients(&self, critic: &Critic, device: &Device) -> GradientsParams {
-        let mut grads = GradientsParams::new();
-        let tensor1 =
-            |v: &[f32]| Tensor::<1>::from_data(TensorData::new(v.to_vec(), [v.len()]), device);
-        for (conv, (w, b)) in critic.convs.iter().zip(&self.convs) {
-            let shape = conv.weight.val().dims();
-            grads.register(
-                conv.weight.id,
-                Tensor::<5>::from_data(TensorData::new(w.clone(), shape), device),
-            );
-            if let Some(bias) = &conv.bias {
-                grads.register(bias.id, tensor1(b));
-            }
-        }
-        let (w, b) = &self.head;
-        grads.register(
-            critic.head.weight.id,
-            Tensor::<2>::from_data(TensorData::new(w.clone(), [w.len(), 1]), device),
-        );
-        if let Some(bias) = &critic.head.bias {
-            grads.register(bias.id, tensor1(&[*b]));
-        }
-        grads
     }
 }
