@@ -5,7 +5,15 @@
 //! ```text
 //! cargo bench --bench fit                                   # 60 s per photo
 //! IPFN_FIT_BUDGET=15m IPFN_FIT_PHOTOS=a.png,b.jpg cargo bench --bench fit
+//! IPFN_FIT_ITERATIONS=5593 IPFN_FIT_WINDOWS=512 IPFN_FIT_PHOTOS=brick.jpg cargo bench --bench fit
 //! ```
+//!
+//! `IPFN_FIT_ITERATIONS=N` fits N steps of the last stage instead of a time budget (the same
+//! work whatever else the machine runs). `IPFN_FIT_WINDOWS=N` fits five NxN windows of each
+//! photo instead of the whole photo, at offsets spread so that no two windows' seams fall on
+//! the same line, and pools their seam scores: one tile's score depends on what its seam
+//! happens to cross (a photo's own lines spread from about 0.7 to 1.5), so a method's seam is
+//! judged over several.
 //!
 //! Photos: `IPFN_FIT_PHOTOS`, else the DTD photographs in `../shared/exemplars/` where that
 //! folder exists, then the shipped `exemplars/honeycomb.png`, `bricks.png` and `weave.png`.
@@ -24,7 +32,7 @@ use ipfn::fit::fused::{CHUNK, Stage};
 use ipfn::fit::target::seam_mask;
 use ipfn::fit::{FitConfig, Fitter, psnr};
 use ipfn::generator::fused::matmul_into;
-use ipfn::metrics::{line_score_spread, seam_score};
+use ipfn::metrics::{line_score_spread, seam_score, seam_score_of_tiles};
 use rayon::prelude::*;
 
 fn photos() -> Vec<PathBuf> {
@@ -56,6 +64,9 @@ struct Row {
     photo_seam: f64,
     /// The photo's own lines scored as seams: "p5 to p95".
     photo_lines: String,
+    /// The fitted tile and the cross-faded one, for pooled seam scores.
+    tiles: [Vec<f32>; 2],
+    channels: usize,
 }
 
 /// PSNR whole, PSNR interior and the 2x2 seam score of `tile` against `photo`.
@@ -69,16 +80,31 @@ fn scores(tile: &[f32], photo: &ipfn::exemplar::Exemplar, lambda: &[f32]) -> [f6
     ]
 }
 
-fn measure(path: &Path, budget: Duration, scratch: &Path) -> ipfn::Result<Row> {
-    let config = FitConfig {
+/// Fits `path` for `budget`, or `iterations` steps of the last stage where given.
+fn measure(
+    path: &Path,
+    budget: Duration,
+    iterations: Option<u64>,
+    scratch: &Path,
+) -> ipfn::Result<Row> {
+    let mut config = FitConfig {
         photo: Some(path.to_path_buf()),
         ..FitConfig::default()
     };
+    if let Some(n) = iterations {
+        config.iterations = FitConfig::stage_steps(n, config.stages);
+    }
     let run = scratch.join(path.file_stem().unwrap_or_default());
     let start = Instant::now();
     let mut fitter = Fitter::start(config, &run, None)?;
-    fitter.plan(budget);
-    fitter.run(&AtomicBool::new(false), Some(start + budget), |_| {})?;
+    let deadline = match iterations {
+        Some(_) => None,
+        None => {
+            fitter.plan(budget);
+            Some(start + budget)
+        }
+    };
+    fitter.run(&AtomicBool::new(false), deadline, |_| {})?;
     let photo = fitter.photo().clone();
     let (h, w) = (photo.height, photo.width);
     let tile = fitter.painter().render([0, 0], [h, w]);
@@ -101,7 +127,43 @@ fn measure(path: &Path, budget: Duration, scratch: &Path) -> ipfn::Result<Row> {
         photo_lines: line_score_spread(&photo.values, h, w, photo.channels)
             .map(|l| format!("{:.2} to {:.2}", l.p5, l.p95))
             .unwrap_or_default(),
+        tiles: [tile, crossfade.values],
+        channels: photo.channels,
     })
+}
+
+/// Five `side x side` windows of the photo at `path`, written to `scratch` as PNGs: the centre
+/// and four offsets (in quarters of the room left over, rows and columns each a permutation of
+/// 0 to 4), so that no two windows' seams fall on the same line of the photo.
+fn windows(path: &Path, side: usize, scratch: &Path) -> ipfn::Result<Vec<PathBuf>> {
+    let photo = read_exemplar(path)?;
+    let room = [
+        photo.height.saturating_sub(side),
+        photo.width.saturating_sub(side),
+    ];
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    [(2, 2), (0, 1), (1, 4), (3, 0), (4, 3)]
+        .iter()
+        .map(|&(qy, qx)| {
+            let at = [room[0] * qy / 4, room[1] * qx / 4];
+            let cut = photo.window(at, [side, side]);
+            let out = scratch.join(format!("{stem}@{},{}.png", at[0], at[1]));
+            ipfn::io::write_png(&out, cut.width, cut.height, cut.channels, &cut.values)?;
+            Ok(out)
+        })
+        .collect()
+}
+
+/// The seam scores of several fits' tiles of one size together, fitted and cross-faded.
+fn pooled(rows: &[Row]) -> Option<[f64; 2]> {
+    let first = rows.first()?;
+    let (w, h) = first.size.split_once('x')?;
+    let (w, h): (usize, usize) = (w.parse().ok()?, h.parse().ok()?);
+    let score = |k: usize| {
+        let tiles: Vec<&[f32]> = rows.iter().map(|r| r.tiles[k].as_slice()).collect();
+        seam_score_of_tiles(&tiles, h, w, first.channels).map(|s| s.overall)
+    };
+    Some([score(0).ok()?, score(1).ok()?])
 }
 
 /// One step of the default last stage on the centre of a photo (at most 512x512) (the seam band's share of points
@@ -194,14 +256,45 @@ fn step_against_floor(photo: &Path, scratch: &Path) -> ipfn::Result<()> {
     Ok(())
 }
 
+fn print_row(r: &Row) {
+    println!(
+        "| {} | {} | {} / {} = {:.2} | {:.0} | {:.2} ({:.2}) | {:.3} | {:.2} ({:.2}) | {:.3} | {:.3} | {} |",
+        r.name,
+        r.size,
+        r.params,
+        r.pixels,
+        r.params as f64 / r.pixels as f64,
+        r.seconds,
+        r.fit[0],
+        r.fit[1],
+        r.fit[2],
+        r.crossfade[0],
+        r.crossfade[1],
+        r.crossfade[2],
+        r.photo_seam,
+        r.photo_lines
+    );
+}
+
 fn main() -> ipfn::Result<()> {
     let budget = ipfn::train::config::parse_duration(
         &std::env::var("IPFN_FIT_BUDGET").unwrap_or_else(|_| "60s".into()),
     )?;
     let scratch = tempfile::tempdir().expect("a temporary folder");
+    let iterations: Option<u64> = std::env::var("IPFN_FIT_ITERATIONS")
+        .ok()
+        .and_then(|n| n.parse().ok());
+    let side: Option<usize> = std::env::var("IPFN_FIT_WINDOWS")
+        .ok()
+        .and_then(|n| n.parse().ok());
+    let work = match iterations {
+        Some(n) => format!("{n} steps of the last stage"),
+        None => format!("{:.0} s budget", budget.as_secs_f64()),
+    };
     println!(
-        "ipfn fit, default settings, {:.0} s budget per photo, {} threads",
-        budget.as_secs_f64(),
+        "ipfn fit, default settings, {work} per photo{}, {} threads",
+        side.map(|s| format!(" (five {s}x{s} windows of each)"))
+            .unwrap_or_default(),
         rayon::current_num_threads()
     );
     println!();
@@ -212,25 +305,28 @@ fn main() -> ipfn::Result<()> {
     let mut first = None;
     for photo in photos() {
         first.get_or_insert(photo.clone());
-        match measure(&photo, budget, scratch.path()) {
-            Ok(r) => println!(
-                "| {} | {} | {} / {} = {:.2} | {:.0} | {:.2} ({:.2}) | {:.3} | {:.2} ({:.2}) | {:.3} | {:.3} | {} |",
-                r.name,
-                r.size,
-                r.params,
-                r.pixels,
-                r.params as f64 / r.pixels as f64,
-                r.seconds,
-                r.fit[0],
-                r.fit[1],
-                r.fit[2],
-                r.crossfade[0],
-                r.crossfade[1],
-                r.crossfade[2],
-                r.photo_seam,
-                r.photo_lines
-            ),
-            Err(e) => println!("| {} | error: {e} | | | | | | | | |", photo.display()),
+        let paths = match side {
+            Some(side) => windows(&photo, side, scratch.path())?,
+            None => vec![photo.clone()],
+        };
+        let mut rows = Vec::new();
+        for path in paths {
+            match measure(&path, budget, iterations, scratch.path()) {
+                Ok(r) => {
+                    print_row(&r);
+                    rows.push(r);
+                }
+                Err(e) => println!("| {} | error: {e} | | | | | | | | |", path.display()),
+            }
+        }
+        if side.is_some()
+            && let Some([fit, crossfade]) = pooled(&rows)
+        {
+            println!(
+                "| {}: the {} windows pooled | | | | | **{fit:.3}** | | {crossfade:.3} | | |",
+                photo.display(),
+                rows.len()
+            );
         }
     }
     println!(

@@ -69,12 +69,18 @@ impl Exemplar {
 
     /// The centre `side x side` pixels (at most) of an image exemplar.
     pub fn centre(&self, side: usize) -> Self {
+        let (h, w) = (self.height.min(side), self.width.min(side));
+        self.window([(self.height - h) / 2, (self.width - w) / 2], [h, w])
+    }
+
+    /// The `[height, width]` window whose top-left pixel is `[top, left]` (clipped to the image).
+    pub fn window(&self, [top, left]: [usize; 2], [height, width]: [usize; 2]) -> Self {
         let (h, w, c) = (self.height, self.width, self.channels);
-        let (ch, cw) = (h.min(side), w.min(side));
+        let (top, left) = (top.min(h), left.min(w));
+        let (ch, cw) = (height.min(h - top), width.min(w - left));
         if (ch, cw) == (h, w) {
             return self.clone();
         }
-        let (top, left) = ((h - ch) / 2, (w - cw) / 2);
         let mut values = Vec::with_capacity(ch * cw * c);
         for y in top..top + ch {
             let from = (y * w + left) * c;
