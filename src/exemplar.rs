@@ -313,3 +313,34 @@ impl Volume {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Exemplar;
+
+    /// A `height x width` one-channel exemplar whose pixel (y, x) holds `10 y + x`.
+    fn numbered(height: usize, width: usize) -> Exemplar {
+        Exemplar {
+            width,
+            height,
+            depth: 1,
+            channels: 1,
+            values: (0..height)
+                .flat_map(|y| (0..width).map(move |x| (10 * y + x) as f32))
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn a_window_holds_the_pixels_below_and_right_of_its_corner_clipped_to_the_image() {
+        let image = numbered(4, 5);
+        let w = image.window([1, 2], [2, 2]);
+        assert_eq!((w.height, w.width), (2, 2));
+        assert_eq!(w.values, vec![12.0, 13.0, 22.0, 23.0]);
+        let clipped = image.window([3, 3], [4, 4]);
+        assert_eq!((clipped.height, clipped.width), (1, 2));
+        assert_eq!(clipped.values, vec![33.0, 34.0]);
+        let centre = image.centre(2);
+        assert_eq!(centre.values, vec![11.0, 12.0, 21.0, 22.0]);
+    }
+}
