@@ -134,7 +134,8 @@ fn measure(
 
 /// Five `side x side` windows of the photo at `path`, written to `scratch` as PNGs: the centre
 /// and four offsets (in quarters of the room left over, rows and columns each a permutation of
-/// 0 to 4), so that no two windows' seams fall on the same line of the photo.
+/// 0 to 4), so that no two windows' seams fall on the same line of the photo; fewer where the
+/// photo leaves no room to move them.
 fn windows(path: &Path, side: usize, scratch: &Path) -> ipfn::Result<Vec<PathBuf>> {
     let photo = read_exemplar(path)?;
     let room = [
@@ -142,10 +143,15 @@ fn windows(path: &Path, side: usize, scratch: &Path) -> ipfn::Result<Vec<PathBuf
         photo.width.saturating_sub(side),
     ];
     let stem = path.file_stem().unwrap_or_default().to_string_lossy();
-    [(2, 2), (0, 1), (1, 4), (3, 0), (4, 3)]
+    let mut corners: Vec<[usize; 2]> = [(2, 2), (0, 1), (1, 4), (3, 0), (4, 3)]
         .iter()
-        .map(|&(qy, qx)| {
-            let at = [room[0] * qy / 4, room[1] * qx / 4];
+        .map(|&(qy, qx)| [room[0] * qy / 4, room[1] * qx / 4])
+        .collect();
+    // A photo hardly larger than the window has fewer distinct windows.
+    corners.dedup();
+    corners
+        .into_iter()
+        .map(|at| {
             let cut = photo.window(at, [side, side]);
             let out = scratch.join(format!("{stem}@{},{}.png", at[0], at[1]));
             ipfn::io::write_png(&out, cut.width, cut.height, cut.channels, &cut.values)?;
