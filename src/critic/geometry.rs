@@ -66,15 +66,20 @@ impl Geometry {
         }
     }
 
-    /// `[batch · out positions, patch]` from channels-last `x` `[batch · in positions, inputs]`.
-    pub(super) fn im2col(&self, x: &[f32], batch: usize) -> Vec<f32> {
-        let (patch, pin, pout, c) = (
+    /// `[patch, in positions, out positions, inputs, taps]`: the sizes im2col and col2im index by.
+    fn sizes(&self) -> [usize; 5] {
+        [
             self.patch(),
             self.in_positions(),
             self.out_positions(),
             self.inputs,
-        );
-        let taps = self.tap_count();
+            self.tap_count(),
+        ]
+    }
+
+    /// `[batch · out positions, patch]` from channels-last `x` `[batch · in positions, inputs]`.
+    pub(super) fn im2col(&self, x: &[f32], batch: usize) -> Vec<f32> {
+        let [patch, pin, pout, c, taps] = self.sizes();
         let mut cols = vec![0f32; batch * pout * patch];
         cols.par_chunks_mut(patch).enumerate().for_each(|(r, row)| {
             let (b, p) = (r / pout, r % pout);
@@ -91,13 +96,7 @@ impl Geometry {
     /// The adjoint of [`Geometry::im2col`]: sums each column back onto the input it was read
     /// from. One sample per task, in a fixed order.
     pub(super) fn col2im(&self, cols: &[f32], batch: usize) -> Vec<f32> {
-        let (patch, pin, pout, c) = (
-            self.patch(),
-            self.in_positions(),
-            self.out_positions(),
-            self.inputs,
-        );
-        let taps = self.tap_count();
+        let [patch, pin, pout, c, taps] = self.sizes();
         let mut x = vec![0f32; batch * pin * c];
         x.par_chunks_mut(pin * c)
             .enumerate()
