@@ -115,7 +115,7 @@ pub(super) fn eval(args: EvalArgs) -> Result<()> {
     Ok(())
 }
 
-/// The report as text: SIFID, seam score and period, one line each.
+/// The report as text: SIFID, seam score, period and repeat strength, one line each.
 fn print_report(r: &crate::metrics::ModelReport) {
     let fmt_period = |p: Option<f64>| p.map_or("none".to_string(), |v| format!("{v:.1}"));
     println!(
@@ -141,6 +141,10 @@ fn print_report(r: &crate::metrics::ModelReport) {
         r.period_model[1],
         fmt_period(r.period_exemplar[0]),
         fmt_period(r.period_exemplar[1])
+    );
+    println!(
+        "repeat         samples {:.2} x {:.2}, exemplar {:.2} x {:.2} (autocorrelation at that peak; samples far above the exemplar show a grid)",
+        r.repeat_model[0], r.repeat_model[1], r.repeat_exemplar[0], r.repeat_exemplar[1]
     );
 }
 

@@ -16,7 +16,10 @@
 //! seams, inside the tile: about 1 for a seamless tile, larger where the wrap shows.
 //!
 //! The **dominant period** of an image along an axis is the lag of the first strong peak of its
-//! autocorrelation along that axis, past the central lobe.
+//! autocorrelation along that axis, past the central lobe; the peak's height over the
+//! autocorrelation at lag 0 is the repeat's **strength**: near 1 for a regular pattern, near 0
+//! for a stochastic one. A model whose samples repeat far more strongly than its exemplar paints
+//! a visible grid.
 
 mod sifid;
 mod tiles;
@@ -65,6 +68,11 @@ pub struct ModelReport {
     pub period_model: [f64; 2],
     /// The exemplar's dominant period from its autocorrelation: rows, columns.
     pub period_exemplar: [Option<f64>; 2],
+    /// Strength of the samples' strongest repeat (rows, columns; mean over the SIFID samples, 0
+    /// where a sample has none).
+    pub repeat_model: [f64; 2],
+    /// Strength of the exemplar's strongest repeat (rows, columns; 0 where it has none).
+    pub repeat_exemplar: [f64; 2],
     pub width: usize,
     pub height: usize,
     pub seed: u64,
@@ -90,8 +98,15 @@ pub fn evaluate_model(
     } else {
         exemplar
     };
-    let sifid = sifid_of_model(config, weights, exemplar, samples, seed, device)?;
     let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
+    let plain = render_samples(config, weights, exemplar, samples, seed, device)?;
+    let sifid = sifid_of_samples(exemplar, &plain)?;
+    let strength = |image: &[f32]| repeats(image, h, w, c).map(|r| r.map_or(0.0, |r| r.strength));
+    let mut repeat_model = [0.0; 2];
+    for sample in &plain {
+        let s = strength(sample);
+        (0..2).for_each(|axis| repeat_model[axis] += s[axis] / samples as f64);
+    }
     // One --tile sample per seed, each cut at another phase of the pattern (an offset within
     // the tile's period keeps it a tile), so the seam score does not measure one phase.
     let mut tiles = Vec::with_capacity(samples);
@@ -114,6 +129,8 @@ pub fn evaluate_model(
         seam_exemplar: seam_score(&exemplar.values, h, w, c)?,
         period_model: [period(0), period(1)],
         period_exemplar: dominant_period(&exemplar.values, h, w, c),
+        repeat_model,
+        repeat_exemplar: strength(&exemplar.values),
         width: w,
         height: h,
         seed,
@@ -130,6 +147,20 @@ pub fn sifid_of_model(
     seed: u64,
     device: crate::device::DeviceChoice,
 ) -> Result<Summary> {
+    let rendered = render_samples(config, weights, exemplar, samples, seed, device)?;
+    sifid_of_samples(exemplar, &rendered)
+}
+
+/// `samples` samples (seeds `seed`, `seed + 1`, ...) of the model at the exemplar's size, each
+/// `[h, w, c]`.
+fn render_samples(
+    config: &crate::generator::GeneratorConfig,
+    weights: &crate::generator::GeneratorWeights,
+    exemplar: &crate::exemplar::Exemplar,
+    samples: usize,
+    seed: u64,
+    device: crate::device::DeviceChoice,
+) -> Result<Vec<Vec<f32>>> {
     use crate::synth::Synth;
     if exemplar.channels != config.channels {
         return Err(input_error!(
@@ -138,17 +169,25 @@ pub fn sifid_of_model(
             config.channels
         ));
     }
+    (0..samples as u64)
+        .map(|s| {
+            let painter = Synth::new(config.clone(), weights.clone())
+                .seed(seed.wrapping_add(s))
+                .device(device)
+                .painter()?;
+            Ok(painter.render(&[0, 0], &[exemplar.height, exemplar.width]))
+        })
+        .collect()
+}
+
+/// SIFID of each of `samples` (`[h, w, c]`, the exemplar's size) against the exemplar.
+fn sifid_of_samples(exemplar: &crate::exemplar::Exemplar, samples: &[Vec<f32>]) -> Result<Summary> {
     let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
     let stem = InceptionStem::embedded();
     let real = Gaussian::fit(&stem.features(&to_unit_rgb(&exemplar.values, c)?, h, w)?)?;
-    let mut sifids = Vec::with_capacity(samples);
-    for s in 0..samples as u64 {
-        let painter = Synth::new(config.clone(), weights.clone())
-            .seed(seed.wrapping_add(s))
-            .device(device)
-            .painter()?;
-        let fake = painter.render(&[0, 0], &[h, w]);
-        let fake = Gaussian::fit(&stem.features(&to_unit_rgb(&fake, c)?, h, w)?)?;
+    let mut sifids = Vec::with_capacity(samples.len());
+    for fake in samples {
+        let fake = Gaussian::fit(&stem.features(&to_unit_rgb(fake, c)?, h, w)?)?;
         sifids.push(frechet_distance(&real, &fake));
     }
     Ok(Summary::of(sifids))
@@ -244,6 +283,34 @@ mod tests {
         let [rows, cols] = dominant_period(&v, h, w, 1);
         assert!((cols.unwrap() - 12.5).abs() < 0.3, "{cols:?}");
         assert!((rows.unwrap() - 9.0).abs() < 0.3, "{rows:?}");
+    }
+
+    #[test]
+    fn stripes_repeat_strongly_and_noise_hardly() {
+        let (h, w) = (64, 96);
+        let stripes: Vec<f32> = (0..h * w)
+            .map(|i| (std::f32::consts::TAU * (i % w) as f32 / 12.0).sin())
+            .collect();
+        let [rows, cols] = repeats(&stripes, h, w, 1);
+        assert!(rows.is_none(), "constant down the rows: {rows:?}");
+        let cols = cols.unwrap();
+        assert!(
+            (cols.period - 12.0).abs() < 0.3 && cols.strength > 0.8,
+            "{cols:?}"
+        );
+        // White noise (splitmix64 of the index): any "peak" is a small fraction of the variance.
+        let splitmix = |i: u64| {
+            let mut z = i.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        };
+        let noise: Vec<f32> = (0..(h * w) as u64)
+            .map(|i| (splitmix(i) >> 40) as f32 / (1u64 << 24) as f32 - 0.5)
+            .collect();
+        for r in repeats(&noise, h, w, 1).into_iter().flatten() {
+            assert!(r.strength < 0.2, "{r:?}");
+        }
     }
 
     #[test]

@@ -180,16 +180,26 @@ fn row_step(image: &[f32], [_, width, channels]: [usize; 3], y0: usize, y1: usiz
     s / (width * channels) as f64
 }
 
-/// The dominant period (pixels) along rows (vertical, `[0]`) and columns (horizontal, `[1]`)
-/// of an image `[height, width, channels]`: the lag of the first autocorrelation peak after the
-/// first minimum that reaches 70% of the highest peak, for lags up to half the side, refined to
-/// a fraction of a pixel by a parabola. `None` where there is no such peak.
-pub fn dominant_period(
+/// A repeat of an image along one axis, from its autocorrelation.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Repeat {
+    /// The lag of the autocorrelation's peak, in pixels, refined to a fraction of a pixel.
+    pub period: f64,
+    /// The autocorrelation at that lag over its value at lag 0: 1 where the image repeats
+    /// exactly, near 0 where the "peak" is only noise (a stochastic texture's).
+    pub strength: f64,
+}
+
+/// The strongest repeat along rows (vertical, `[0]`) and columns (horizontal, `[1]`) of an image
+/// `[height, width, channels]`: the lag of the first autocorrelation peak after the first
+/// minimum that reaches 70% of the highest peak, for lags up to half the side, refined to a
+/// fraction of a pixel by a parabola. `None` where there is no such peak.
+pub fn repeats(
     values: &[f32],
     height: usize,
     width: usize,
     channels: usize,
-) -> [Option<f64>; 2] {
+) -> [Option<Repeat>; 2] {
     // Luminance-like mean over channels, with the mean removed.
     let gray: Vec<f64> = values
         .chunks_exact(channels)
@@ -198,7 +208,7 @@ pub fn dominant_period(
     let mean = gray.iter().sum::<f64>() / gray.len().max(1) as f64;
     let g = |y: usize, x: usize| gray[y * width + x] - mean;
     // Normalised autocorrelation along one axis, averaged over the other.
-    let along = |len: usize, other: usize, pick: &dyn Fn(usize, usize) -> f64| -> Option<f64> {
+    let along = |len: usize, other: usize, pick: &dyn Fn(usize, usize) -> f64| -> Option<Repeat> {
         let max_lag = len / 2;
         if max_lag < 3 {
             return None;
@@ -214,7 +224,9 @@ pub fn dominant_period(
                 s / ((len - lag) * other) as f64
             })
             .collect();
-        if r[0] <= 0.0 {
+        // No variance, or none that changes along this axis (rows of a vertical stripe): any
+        // lag is a "period", so none is.
+        if r[0] <= 0.0 || r.iter().all(|&v| (r[0] - v).abs() <= 1e-9 * r[0]) {
             return None;
         }
         let first_min = (1..max_lag).find(|&l| r[l] <= r[l - 1] && r[l] <= r[l + 1])?;
@@ -233,10 +245,23 @@ pub fn dominant_period(
         } else {
             0.0
         };
-        Some(peak as f64 + shift)
+        Some(Repeat {
+            period: peak as f64 + shift,
+            strength: b / r[0],
+        })
     };
     [
         along(height, width, &|x, y| g(y, x)),
         along(width, height, &|y, x| g(y, x)),
     ]
+}
+
+/// The dominant period (pixels) along rows and columns: the lag of [`repeats`], however weak.
+pub fn dominant_period(
+    values: &[f32],
+    height: usize,
+    width: usize,
+    channels: usize,
+) -> [Option<f64>; 2] {
+    repeats(values, height, width, channels).map(|r| r.map(|r| r.period))
 }
