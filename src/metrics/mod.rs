@@ -99,14 +99,16 @@ pub fn evaluate_model(
         exemplar
     };
     let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
-    let plain = render_samples(config, weights, exemplar, samples, seed, device)?;
-    let sifid = sifid_of_samples(exemplar, &plain)?;
     let strength = |image: &[f32]| repeats(image, h, w, c).map(|r| r.map_or(0.0, |r| r.strength));
-    let mut repeat_model = [0.0; 2];
-    for sample in &plain {
+    let real = exemplar_features(config, exemplar)?;
+    let (mut sifids, mut repeat_model) = (Vec::with_capacity(samples), [0.0; 2]);
+    for_each_sample(config, weights, exemplar, samples, seed, device, |sample| {
+        sifids.push(sifid_against(&real, sample, exemplar)?);
         let s = strength(sample);
         (0..2).for_each(|axis| repeat_model[axis] += s[axis] / samples as f64);
-    }
+        Ok(())
+    })?;
+    let sifid = Summary::of(sifids);
     // One --tile sample per seed, each cut at another phase of the pattern (an offset within
     // the tile's period keeps it a tile), so the seam score does not measure one phase.
     let mut tiles = Vec::with_capacity(samples);
@@ -147,21 +149,43 @@ pub fn sifid_of_model(
     seed: u64,
     device: crate::device::DeviceChoice,
 ) -> Result<Summary> {
-    let rendered = render_samples(config, weights, exemplar, samples, seed, device)?;
-    sifid_of_samples(exemplar, &rendered)
+    let real = exemplar_features(config, exemplar)?;
+    let mut sifids = Vec::with_capacity(samples);
+    for_each_sample(config, weights, exemplar, samples, seed, device, |fake| {
+        sifids.push(sifid_against(&real, fake, exemplar)?);
+        Ok(())
+    })?;
+    Ok(Summary::of(sifids))
 }
 
-/// `samples` samples (seeds `seed`, `seed + 1`, ...) of the model at the exemplar's size, each
-/// `[h, w, c]`.
-fn render_samples(
+/// Paints `samples` samples (seeds `seed`, `seed + 1`, ...) of the model at the exemplar's size
+/// and hands each (`[h, w, c]`) to `each`, one at a time, so memory holds one sample.
+fn for_each_sample(
     config: &crate::generator::GeneratorConfig,
     weights: &crate::generator::GeneratorWeights,
     exemplar: &crate::exemplar::Exemplar,
     samples: usize,
     seed: u64,
     device: crate::device::DeviceChoice,
-) -> Result<Vec<Vec<f32>>> {
+    mut each: impl FnMut(&[f32]) -> Result<()>,
+) -> Result<()> {
     use crate::synth::Synth;
+    for s in 0..samples as u64 {
+        let painter = Synth::new(config.clone(), weights.clone())
+            .seed(seed.wrapping_add(s))
+            .device(device)
+            .painter()?;
+        each(&painter.render(&[0, 0], &[exemplar.height, exemplar.width]))?;
+    }
+    Ok(())
+}
+
+/// The Gaussian of the exemplar's stem features (values in [-1, 1], `[h, w, c]`), for a model
+/// that paints its channels.
+fn exemplar_features(
+    config: &crate::generator::GeneratorConfig,
+    exemplar: &crate::exemplar::Exemplar,
+) -> Result<Gaussian> {
     if exemplar.channels != config.channels {
         return Err(input_error!(
             "the exemplar has {} channels but the model paints {}; evaluate a model with the exemplar it was trained on",
@@ -169,28 +193,20 @@ fn render_samples(
             config.channels
         ));
     }
-    (0..samples as u64)
-        .map(|s| {
-            let painter = Synth::new(config.clone(), weights.clone())
-                .seed(seed.wrapping_add(s))
-                .device(device)
-                .painter()?;
-            Ok(painter.render(&[0, 0], &[exemplar.height, exemplar.width]))
-        })
-        .collect()
+    let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
+    let features = InceptionStem::embedded().features(&to_unit_rgb(&exemplar.values, c)?, h, w)?;
+    Gaussian::fit(&features)
 }
 
-/// SIFID of each of `samples` (`[h, w, c]`, the exemplar's size) against the exemplar.
-fn sifid_of_samples(exemplar: &crate::exemplar::Exemplar, samples: &[Vec<f32>]) -> Result<Summary> {
+/// SIFID of `fake` (`[h, w, c]`, the exemplar's size) against the exemplar's features `real`.
+fn sifid_against(
+    real: &Gaussian,
+    fake: &[f32],
+    exemplar: &crate::exemplar::Exemplar,
+) -> Result<f64> {
     let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
-    let stem = InceptionStem::embedded();
-    let real = Gaussian::fit(&stem.features(&to_unit_rgb(&exemplar.values, c)?, h, w)?)?;
-    let mut sifids = Vec::with_capacity(samples.len());
-    for fake in samples {
-        let fake = Gaussian::fit(&stem.features(&to_unit_rgb(fake, c)?, h, w)?)?;
-        sifids.push(frechet_distance(&real, &fake));
-    }
-    Ok(Summary::of(sifids))
+    let fake = InceptionStem::embedded().features(&to_unit_rgb(fake, c)?, h, w)?;
+    Ok(frechet_distance(real, &Gaussian::fit(&fake)?))
 }
 
 #[cfg(test)]
