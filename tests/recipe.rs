@@ -69,16 +69,24 @@ fn a_time_budget_plans_the_run_scores_it_and_keeps_the_best() {
     assert_eq!((config.crop, config.resize), (32, 1.0));
     assert_eq!(config.k_init, None);
     assert_eq!(config.k_lr, 10.0, "a plain image takes K's own rate");
-    // Every checkpoint row carries a finite score; others leave it empty.
+    // Every checkpoint row carries a finite score and repeat strength; others leave them empty.
     let metrics = std::fs::read_to_string(d.join("runs/b/metrics.csv")).unwrap();
-    assert!(metrics.lines().next().unwrap().ends_with(",sifid"));
-    let scores: Vec<f64> = metrics
+    assert!(metrics.lines().next().unwrap().ends_with(",sifid,repeat"));
+    let scored: Vec<(f64, f64)> = metrics
         .lines()
         .skip(1)
-        .filter_map(|l| l.rsplit(',').next().filter(|v| !v.is_empty()))
-        .map(|v| v.parse().unwrap())
+        .filter_map(|l| {
+            let (rest, repeat) = l.rsplit_once(',').unwrap();
+            let sifid = rest.rsplit(',').next().unwrap();
+            assert_eq!(sifid.is_empty(), repeat.is_empty(), "{l}");
+            (!sifid.is_empty()).then(|| (sifid.parse().unwrap(), repeat.parse().unwrap()))
+        })
         .collect();
-    assert!(!scores.is_empty() && scores.iter().all(|s| s.is_finite() && *s >= 0.0));
+    assert!(!scored.is_empty());
+    for &(sifid, repeat) in &scored {
+        assert!(sifid.is_finite() && sifid >= 0.0 && (0.0..=1.0).contains(&repeat));
+    }
+    let scores: Vec<f64> = scored.iter().map(|s| s.0).collect();
     // best.ipfn holds the best-scoring checkpoint's generator, and synth prefers it.
     let best = Checkpoint::load(&d.join("runs/b/best.ipfn")).unwrap();
     GeneratorWeights::read_from(&best).unwrap();

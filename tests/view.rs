@@ -322,6 +322,7 @@ fn a_run_is_followed_live_and_reported_at_its_end() {
         "k_rows",
         "k_cols",
         "sifid",
+        "repeat",
     ] {
         assert!(
             metrics[column].as_array().is_some_and(|c| !c.is_empty()),

@@ -156,7 +156,14 @@ fn chromium_shows_a_run_and_its_report() {
             .iter()
             .map(|s| s.as_str().unwrap())
             .collect();
-        for expected in ["wasserstein", "penalty", "k_rows", "k_cols", "sifid"] {
+        for expected in [
+            "wasserstein",
+            "penalty",
+            "k_rows",
+            "k_cols",
+            "sifid",
+            "repeat",
+        ] {
             assert!(series.contains(&expected), "{key}: {series:?}");
         }
         assert_eq!(record[key]["state"], "finished", "{key}");

@@ -99,16 +99,7 @@ pub fn evaluate_model(
         exemplar
     };
     let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
-    let strength = |image: &[f32]| repeats(image, h, w, c).map(|r| r.map_or(0.0, |r| r.strength));
-    let real = exemplar_features(config, exemplar)?;
-    let (mut sifids, mut repeat_model) = (Vec::with_capacity(samples), [0.0; 2]);
-    for_each_sample(config, weights, exemplar, samples, seed, device, |sample| {
-        sifids.push(sifid_against(&real, sample, exemplar)?);
-        let s = strength(sample);
-        (0..2).for_each(|axis| repeat_model[axis] += s[axis] / samples as f64);
-        Ok(())
-    })?;
-    let sifid = Summary::of(sifids);
+    let (sifid, repeat_model) = sifid_and_repeat(config, weights, exemplar, samples, seed, device)?;
     // One --tile sample per seed, each cut at another phase of the pattern (an offset within
     // the tile's period keeps it a tile), so the seam score does not measure one phase.
     let mut tiles = Vec::with_capacity(samples);
@@ -132,11 +123,40 @@ pub fn evaluate_model(
         period_model: [period(0), period(1)],
         period_exemplar: dominant_period(&exemplar.values, h, w, c),
         repeat_model,
-        repeat_exemplar: strength(&exemplar.values),
+        repeat_exemplar: repeat_strength(&exemplar.values, h, w, c),
         width: w,
         height: h,
         seed,
     })
+}
+
+/// The strength of an image's strongest repeat along rows and columns (`[h, w, c]`; 0 where it
+/// has none).
+pub fn repeat_strength(image: &[f32], h: usize, w: usize, c: usize) -> [f64; 2] {
+    repeats(image, h, w, c).map(|r| r.map_or(0.0, |r| r.strength))
+}
+
+/// SIFID of `samples` samples (seeds `seed`, `seed + 1`, ...) of the model at the exemplar's
+/// size against the exemplar (values in [-1, 1], `[h, w, c]`), and the samples' mean
+/// [`repeat_strength`] along rows and columns.
+pub fn sifid_and_repeat(
+    config: &crate::generator::GeneratorConfig,
+    weights: &crate::generator::GeneratorWeights,
+    exemplar: &crate::exemplar::Exemplar,
+    samples: usize,
+    seed: u64,
+    device: crate::device::DeviceChoice,
+) -> Result<(Summary, [f64; 2])> {
+    let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
+    let real = exemplar_features(config, exemplar)?;
+    let (mut sifids, mut repeat) = (Vec::with_capacity(samples), [0.0; 2]);
+    for_each_sample(config, weights, exemplar, samples, seed, device, |sample| {
+        sifids.push(sifid_against(&real, sample, exemplar)?);
+        let s = repeat_strength(sample, h, w, c);
+        (0..2).for_each(|axis| repeat[axis] += s[axis] / samples as f64);
+        Ok(())
+    })?;
+    Ok((Summary::of(sifids), repeat))
 }
 
 /// SIFID of `samples` samples (seeds `seed`, `seed + 1`, ...) of the model at the exemplar's

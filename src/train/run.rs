@@ -151,8 +151,8 @@ impl Trainer {
             let stopped = stop.load(Ordering::SeqCst);
             let checkpoint = it.is_multiple_of(cfg.checkpoint_every) || it == total || stopped;
             let preview = it.is_multiple_of(cfg.preview_every) || it == total;
-            if checkpoint {
-                stats.sifid = self.score()?;
+            if checkpoint && let Some(score) = self.score()? {
+                (stats.sifid, stats.repeat) = (Some(score.sifid), Some(score.repeat));
             }
             self.append_metrics(&stats)?;
             on_iteration(self, &stats);
@@ -356,9 +356,10 @@ impl Trainer {
             .map_err(err)?;
         let k: Vec<String> = s.k.iter().map(f32::to_string).collect();
         let sifid = s.sifid.map(|v| v.to_string()).unwrap_or_default();
+        let repeat = s.repeat.map(|v| v.to_string()).unwrap_or_default();
         writeln!(
             file,
-            "{},{},{},{},{},{},{sifid}",
+            "{},{},{},{},{},{},{sifid},{repeat}",
             s.iteration,
             s.wasserstein,
             s.penalty,
@@ -383,5 +384,5 @@ pub fn metrics_header(dims: usize) -> String {
     } else {
         "k_rows,k_cols"
     };
-    format!("iteration,wasserstein,penalty,generator_loss,{k},iterations_per_second,sifid\n")
+    format!("iteration,wasserstein,penalty,generator_loss,{k},iterations_per_second,sifid,repeat\n")
 }

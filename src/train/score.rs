@@ -15,6 +15,15 @@ pub const SCORE_SIDE: usize = 384;
 /// Seed stream of the scored samples (distinct from every training stream).
 const SCORE_STREAM: u64 = 12;
 
+/// A checkpoint's scores.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Score {
+    /// SIFID against the exemplar (lower is better); `best.ipfn` keeps the lowest.
+    pub sifid: f64,
+    /// How strongly the samples repeat (0 to 1); far above the exemplar's, a grid.
+    pub repeat: f64,
+}
+
 impl Trainer {
     /// The exemplar as scoring sees it: at its own scale (the model paints there), gray for a
     /// gray run, its centre at most [`SCORE_SIDE`] a side. `None` where a run is not scored:
@@ -34,14 +43,16 @@ impl Trainer {
     }
 
     /// SIFID (mean over `score_samples` fixed seeds) of the current generator against the
-    /// exemplar at its own size; `None` for runs that are not scored.
-    pub fn score(&self) -> Result<Option<f64>> {
+    /// exemplar at its own size, and how strongly those samples repeat (the mean of
+    /// [`crate::metrics::repeat_strength`] over rows and columns: a grid the SIFID does not
+    /// see shows there); `None` for runs that are not scored.
+    pub fn score(&self) -> Result<Option<Score>> {
         let Some(reference) = self.score_reference()? else {
             return Ok(None);
         };
         let (config, weights) = self.model();
         let seed = derive_seed(self.config.seed, &[SCORE_STREAM]);
-        let summary = crate::metrics::sifid_of_model(
+        let (sifid, repeat) = crate::metrics::sifid_and_repeat(
             &config,
             &weights,
             &reference,
@@ -49,7 +60,10 @@ impl Trainer {
             seed,
             DeviceChoice::Cpu,
         )?;
-        Ok(Some(summary.mean))
+        Ok(Some(Score {
+            sifid: sifid.mean,
+            repeat: (repeat[0] + repeat[1]) / 2.0,
+        }))
     }
 
     /// The best score so far and the iteration that reached it.

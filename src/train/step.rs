@@ -104,6 +104,8 @@ pub struct IterationStats {
     pub iterations_per_second: f32,
     /// The generator's score at a checkpoint (SIFID against the exemplar; lower is better).
     pub sifid: Option<f64>,
+    /// How strongly the scored samples repeat at a checkpoint (0 to 1; see `Trainer::score`).
+    pub repeat: Option<f64>,
     /// Where the iteration's time went.
     pub times: StepTimes,
 }
@@ -116,6 +118,10 @@ impl IterationStats {
             .sifid
             .map(|v| format!("  SIFID {v:.2}"))
             .unwrap_or_default();
+        let sifid = match self.repeat {
+            Some(r) => format!("{sifid}  repeat {r:.2}"),
+            None => sifid,
+        };
         format!(
             "W {:.4}  gp {:.4}  G {:.4}  K {}{sifid}",
             self.wasserstein,

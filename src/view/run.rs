@@ -46,10 +46,12 @@ pub fn read_metrics(run_dir: &Path) -> (Vec<String>, Vec<Vec<Option<f64>>>) {
     let rows: Vec<Vec<Option<f64>>> = lines
         .filter_map(|line| {
             let cells: Vec<&str> = line.split(',').collect();
-            if cells.len() != names.len() || cells[0].parse::<u64>().is_err() {
+            if cells.len() > names.len() || cells[0].parse::<u64>().is_err() {
                 return None;
             }
-            Some(cells.iter().map(|c| c.parse().ok()).collect())
+            // A row from before a column was added (a resumed run) has none of it.
+            let value = |i: usize| cells.get(i).and_then(|c| c.parse().ok());
+            Some((0..names.len()).map(value).collect())
         })
         .collect();
     (names, rows)
@@ -161,6 +163,20 @@ mod tests {
         assert!(kept.len() <= MAX_POINTS + 1 + 10, "{}", kept.len()); // every 5th, the last, the scored
         assert_eq!(kept.last().unwrap()[0], Some(9999.0));
         assert_eq!(kept.iter().filter(|r| r[1].is_some()).count(), 10);
+    }
+
+    #[test]
+    fn rows_from_before_a_column_was_added_read_as_without_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let csv = "iteration,sifid,repeat\n1,,\n100,9.5\n200,8.5,0.25\n3,1,2,3\n";
+        std::fs::write(dir.path().join("metrics.csv"), csv).unwrap();
+        let (names, rows) = read_metrics(dir.path());
+        assert_eq!(names, ["iteration", "sifid", "repeat"]);
+        let row = |i: usize| rows[i].clone();
+        assert_eq!(row(0), [Some(1.0), None, None]);
+        assert_eq!(row(1), [Some(100.0), Some(9.5), None]);
+        assert_eq!(row(2), [Some(200.0), Some(8.5), Some(0.25)]);
+        assert_eq!(rows.len(), 3, "a row longer than the header is dropped");
     }
 
     #[test]
