@@ -27,7 +27,8 @@ const BEST_KEY: &str = "best_sifid";
 
 /// Iterations timed before a run with a time budget plans its length. The first is not timed:
 /// it pays for warming up (buffers, caches). Early iterations are still slower than a CPU run's
-/// average, so a 15-minute run ends early (818 s measured; 844 s when planned from the first 3).
+/// average (a 15-minute run planned once ended at 818 s; from the first 3, at 844 s), so the
+/// plan is renewed at every checkpoint.
 pub const PLAN_AFTER: u64 = 20;
 
 /// The best score stored in a run's checkpoint.
@@ -138,14 +139,14 @@ impl Trainer {
             self.lock = Some(super::lock::RunLock::acquire(&self.run_dir)?);
         }
         let budget = self.config.time_budget()?;
-        let (clock, first) = (Instant::now(), self.iteration);
+        let (clock, first, cap) = (Instant::now(), self.iteration, self.config.iterations);
         let mut warm = None; // the clock after the first iteration
         while self.iteration < self.config.iterations {
             let mut stats = self.step();
             let it = self.iteration;
             let warm = *warm.get_or_insert_with(|| clock.elapsed());
             if let Some(budget) = budget {
-                self.follow_budget(budget, clock.elapsed(), warm, it - first)?;
+                self.follow_budget(budget, clock.elapsed(), warm, it - first, cap)?;
             }
             let (total, cfg) = (self.config.iterations, &self.config);
             let stopped = stop.load(Ordering::SeqCst);
@@ -179,23 +180,30 @@ impl Trainer {
         }
     }
 
-    /// A time budget: after [`PLAN_AFTER`] iterations, `iterations` becomes what fits in the
-    /// rest of the budget at the speed of those after the first (`warm` is the clock after the
-    /// first; at most the planned total), and `time` is cleared so that a resumed run continues
-    /// to that count exactly; a spent budget ends the run now.
+    /// A time budget: after [`PLAN_AFTER`] iterations, and again at each checkpoint,
+    /// `iterations` becomes what fits in the rest of the budget at the speed of the iterations
+    /// after the first (`warm` is the clock after the first; at most `cap`, the run's own
+    /// count), and `time` is cleared, so that a resumed run continues the same iterations to the
+    /// count of its last checkpoint; a spent budget ends the run now.
     fn follow_budget(
         &mut self,
         budget: Duration,
         elapsed: Duration,
         warm: Duration,
         done: u64,
+        cap: u64,
     ) -> Result<()> {
+        // Re-planned at each checkpoint from the speed so far, unless the learning rate's
+        // schedule ends with the planned total (`lr_decay`): then the first plan stands.
+        let replan = done > PLAN_AFTER
+            && self.config.lr_decay == 0.0
+            && self.iteration.is_multiple_of(self.config.checkpoint_every);
         let planned = if elapsed >= budget {
             Some(self.iteration)
-        } else if self.config.time.is_some() && done == PLAN_AFTER {
+        } else if (self.config.time.is_some() && done == PLAN_AFTER) || replan {
             let per_iteration = (elapsed - warm).as_secs_f64() / (done - 1) as f64;
             let more = ((budget - elapsed).as_secs_f64() / per_iteration) as u64;
-            Some((self.iteration + more).min(self.config.iterations))
+            Some((self.iteration + more).min(cap))
         } else {
             None
         };
