@@ -156,14 +156,7 @@ fn chromium_shows_a_run_and_its_report() {
             .iter()
             .map(|s| s.as_str().unwrap())
             .collect();
-        for expected in [
-            "wasserstein",
-            "penalty",
-            "k_rows",
-            "k_cols",
-            "sifid",
-            "repeat",
-        ] {
+        for expected in common::view::PLOTTED {
             assert!(series.contains(&expected), "{key}: {series:?}");
         }
         assert_eq!(record[key]["state"], "finished", "{key}");

@@ -100,6 +100,7 @@ pub fn evaluate_model(
     };
     let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
     let (sifid, repeat_model) = sifid_and_repeat(config, weights, exemplar, samples, seed, device)?;
+    let exemplar_repeats = repeats(&exemplar.values, h, w, c);
     // One --tile sample per seed, each cut at another phase of the pattern (an offset within
     // the tile's period keeps it a tile), so the seam score does not measure one phase.
     let mut tiles = Vec::with_capacity(samples);
@@ -121,9 +122,9 @@ pub fn evaluate_model(
         seam_model_tile: seam_score_of_tiles(&tiles, h, w, c)?,
         seam_exemplar: seam_score(&exemplar.values, h, w, c)?,
         period_model: [period(0), period(1)],
-        period_exemplar: dominant_period(&exemplar.values, h, w, c),
+        period_exemplar: exemplar_repeats.map(|r| r.map(|r| r.period)),
         repeat_model,
-        repeat_exemplar: repeat_strength(&exemplar.values, h, w, c),
+        repeat_exemplar: exemplar_repeats.map(|r| r.map_or(0.0, |r| r.strength)),
         width: w,
         height: h,
         seed,
@@ -157,25 +158,6 @@ pub fn sifid_and_repeat(
         Ok(())
     })?;
     Ok((Summary::of(sifids), repeat))
-}
-
-/// SIFID of `samples` samples (seeds `seed`, `seed + 1`, ...) of the model at the exemplar's
-/// size against the exemplar (values in [-1, 1], `[h, w, c]`).
-pub fn sifid_of_model(
-    config: &crate::generator::GeneratorConfig,
-    weights: &crate::generator::GeneratorWeights,
-    exemplar: &crate::exemplar::Exemplar,
-    samples: usize,
-    seed: u64,
-    device: crate::device::DeviceChoice,
-) -> Result<Summary> {
-    let real = exemplar_features(config, exemplar)?;
-    let mut sifids = Vec::with_capacity(samples);
-    for_each_sample(config, weights, exemplar, samples, seed, device, |fake| {
-        sifids.push(sifid_against(&real, fake, exemplar)?);
-        Ok(())
-    })?;
-    Ok(Summary::of(sifids))
 }
 
 /// Paints `samples` samples (seeds `seed`, `seed + 1`, ...) of the model at the exemplar's size

@@ -20,6 +20,16 @@ impl Drop for Viewer {
     }
 }
 
+/// The metrics.csv columns a scored image run's page plots.
+pub const PLOTTED: [&str; 6] = [
+    "wasserstein",
+    "penalty",
+    "k_rows",
+    "k_cols",
+    "sifid",
+    "repeat",
+];
+
 pub fn view(dir: &Path, args: &[&str]) -> Viewer {
     let mut child = Command::new(env!("CARGO_BIN_EXE_ipfn"))
         .arg("view")
