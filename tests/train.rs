@@ -399,7 +399,7 @@ fn fused_and_burn_fake_crops_agree() {
         .try_into_vec_as::<f32>()
         .unwrap();
     let b = trainer
-        .fake_batch(&trainer.generator().valid(), &device, &[1, 2, 3])
+        .fake_batch(&trainer.generator().valid(), &device, &[1, 2, 3], 0)
         .try_into_vec_as::<f32>()
         .unwrap();
     assert_eq!(a.len(), 3 * 3 * 16 * 16);
@@ -412,9 +412,26 @@ fn fused_and_burn_fake_crops_agree() {
 /// start, a few iterations of each end at the same weights, up to float rounding.
 #[test]
 fn fused_steps_follow_the_framework() {
+    fused_steps_follow_the_framework_with(0.0);
+}
+
+/// The same with the diversity hinge: its gradient by hand (crops and twins through the
+/// generator's backward) is autodiff's. Its weight is large enough to move the weights apart
+/// from a run without it.
+#[test]
+fn fused_diversity_follows_the_framework() {
+    let with = fused_steps_follow_the_framework_with(5.0);
+    let without = fused_steps_follow_the_framework_with(0.0);
+    let moved = common::max_abs_diff(&with.layers[0].weight, &without.layers[0].weight);
+    assert!(moved > 1e-4, "the hinge changed nothing ({moved})");
+}
+
+/// Three iterations fused and through the framework; returns the fused generator.
+fn fused_steps_follow_the_framework_with(diversity: f64) -> ipfn::generator::GeneratorWeights {
     let dir = common::tiny_run_folder();
     let config = TrainConfig {
         lr: 1e-3,
+        diversity,
         ..tiny_network(3)
     };
     let device = Device::flex();
@@ -470,6 +487,7 @@ fn fused_steps_follow_the_framework() {
     };
     let diff = common::max_abs_diff(&critic(&fused), &critic(&framework));
     assert!(diff < 1e-4, "critics differ by {diff}");
+    a
 }
 
 /// K steps at `k_lr` times the weights' rate: Adam's first step moves each parameter by its

@@ -38,6 +38,11 @@ pub struct TrainConfig {
     /// whole image's layout hangs on); 1 is the paper's single rate.
     #[serde(skip_serializing_if = "is_unit")]
     pub k_lr: f64,
+    /// Weight of the diversity hinge ([`super::diversity`]): each generated crop and its twin
+    /// under a fresh latent field must differ as much as two crops of the exemplar do; 0 (the
+    /// paper) leaves diversity to the critic.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub diversity: f64,
     pub beta1: f64,
     pub beta2: f64,
     /// Weight of the gradient penalty.
@@ -138,6 +143,7 @@ impl Default for TrainConfig {
             lr: 1e-4,
             lr_decay: 0.0,
             k_lr: 1.0,
+            diversity: 0.0,
             beta1: 0.5,
             beta2: 0.9,
             gp_lambda: 10.0,
@@ -381,6 +387,12 @@ impl TrainConfig {
                 self.k_lr
             ));
         }
+        if !(self.diversity >= 0.0 && self.diversity.is_finite()) {
+            return Err(input_error!(
+                "diversity = {}: the diversity hinge's weight is finite and not negative, e.g. 1",
+                self.diversity
+            ));
+        }
         if !(0.0..1.0).contains(&self.average) {
             return Err(input_error!(
                 "average = {}: the moving average's decay is at least 0 (off) and below 1, e.g. 0.99",
@@ -564,6 +576,9 @@ overrides! {
     lr_decay: f64, fixed;
     /// K's learning rate as a multiple of --lr, e.g. 10; 1: the same rate as the weights.
     k_lr: f64, fixed;
+    /// Weight of the diversity hinge: each generated crop and its twin under a fresh latent
+    /// field must differ as much as two crops of the exemplar do, e.g. 1; 0: the paper's loss.
+    diversity: f64, fixed;
     /// Seed of every random draw.
     seed: u64, fixed;
     /// Scale the exemplar first (Lanczos-3, anti-aliased), e.g. 0.5.

@@ -139,7 +139,7 @@ impl Trainer {
 
     /// The rows of the crop at `origin` (each `crop` pixels of every channel, interleaved as
     /// the exemplar stores them), in row-major order over the crop's leading axes.
-    fn crop_rows(&self, origin: &[usize]) -> impl Iterator<Item = &[f32]> + '_ {
+    pub(super) fn crop_rows(&self, origin: &[usize]) -> impl Iterator<Item = &[f32]> + '_ {
         let (s, ex, c) = (self.config.crop, &self.exemplar, self.exemplar.channels);
         let shape = ex.shape(origin.len());
         let leading = s.pow(origin.len() as u32 - 1);

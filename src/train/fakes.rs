@@ -17,13 +17,20 @@ use crate::sample::crop_coordinate;
 pub const FLEX_TRAIN_CHUNK: usize = 4096;
 
 impl Trainer {
-    /// The coordinates `[points, axes]` of generated sample `s` and its latent field.
+    /// The coordinates `[points, axes]` of generated sample `s` and its latent field: draw 0
+    /// for the crop the critic scores, 1 for its twin (the same coordinates, a fresh field; see
+    /// [`super::diversity`]).
     ///
     /// A crop's grid of pixel centres spans 2 units and is shifted by a random offset per
     /// axis. For a solid texture it lies in a random axis-aligned plane of the volume: the
     /// plane's axis sits at its random offset, and the crop's rows and columns run along the
     /// other two axes in order. For a volume it is a cube of `crop³` voxels.
-    pub(super) fn sample_coordinates(&self, s: usize, counters: &[u64]) -> (Vec<f32>, LatentField) {
+    pub(super) fn sample_coordinates(
+        &self,
+        s: usize,
+        counters: &[u64],
+        draw: u64,
+    ) -> (Vec<f32>, LatentField) {
         let cfg = &self.config;
         let dims = self.kind.generator_axes();
         let key = |purpose: u64, extra: u64| {
@@ -35,7 +42,7 @@ impl Trainer {
             .map(|axis| (uniform(cfg.seed, &key(stream::SHIFT, axis)) * 2.0 - 1.0) * cfg.shift)
             .collect();
         let field = LatentField::hashed(
-            derive_seed(cfg.seed, &key(stream::LATENT, 0)),
+            derive_seed(cfg.seed, &key(stream::LATENT, draw)),
             dims,
             cfg.latent_dim,
         )
@@ -67,7 +74,8 @@ impl Trainer {
     }
 
     /// Generated crops: the generator at every point of every sample, then the condition
-    /// the generator was given, as one more channel.
+    /// the generator was given, as one more channel. `draw` picks the latent fields (0: the
+    /// critic's crops; 1: their twins).
     ///
     /// # Shapes
     /// - output: `[batch, channels (+ 1), depth, crop, crop]` on `device` (`generator`'s)
@@ -76,10 +84,11 @@ impl Trainer {
         generator: &Generator,
         device: &Device,
         counters: &[u64],
+        draw: u64,
     ) -> Tensor<5> {
         let (b, s, c) = (self.config.batch, self.config.crop, self.exemplar.channels);
         let depth = if self.kind.crop_axes() == 3 { s } else { 1 };
-        let (values, conditions) = self.fake_values(generator, device, counters);
+        let (values, conditions) = self.fake_values(generator, device, counters, draw);
         let crops = values.reshape([b, depth, s, s, c]).permute([0, 4, 1, 2, 3]); // [b, c, depth, s, s]
         if conditions.is_empty() {
             return crops;
@@ -98,6 +107,7 @@ impl Trainer {
         generator: &Generator,
         device: &Device,
         counters: &[u64],
+        draw: u64,
     ) -> (Tensor<2>, Vec<f32>) {
         let cfg = &self.config;
         let (b, ld) = (cfg.batch, cfg.latent_dim);
@@ -105,7 +115,7 @@ impl Trainer {
         let zw = ld + conditioned; // generator input after the encoding: latent, then g
         let (n, dims) = (self.crop_points(), self.kind.generator_axes());
         if device.clone().inner() != Device::flex() {
-            return self.fake_values_on_device(generator, device, counters);
+            return self.fake_values_on_device(generator, device, counters, draw);
         }
         let mut coords = vec![0f32; b * n * dims];
         let mut latent = vec![0f32; b * n * zw];
@@ -115,7 +125,7 @@ impl Trainer {
             .zip(latent.par_chunks_mut(n * zw))
             .enumerate()
             .for_each(|(s, (p, z))| {
-                let (sample, field) = self.sample_coordinates(s, counters);
+                let (sample, field) = self.sample_coordinates(s, counters, draw);
                 p.copy_from_slice(&sample);
                 let u: Vec<f32> = p.iter().map(|v| v * cfg.latent_scale).collect();
                 if conditioned == 0 {
@@ -171,6 +181,7 @@ impl Trainer {
         generator: &Generator,
         device: &Device,
         counters: &[u64],
+        draw: u64,
     ) -> (Tensor<2>, Vec<f32>) {
         let cfg = &self.config;
         let b = cfg.batch;
@@ -179,7 +190,7 @@ impl Trainer {
         let mut conditions = Vec::new();
         let mut plans = Vec::with_capacity(b);
         for s in 0..b {
-            let (p, field) = self.sample_coordinates(s, counters);
+            let (p, field) = self.sample_coordinates(s, counters, draw);
             // The box of lattice cells this crop touches (u = p * latent_scale, as on the device).
             let (mut lo, mut hi) = (vec![f32::INFINITY; dims], vec![f32::NEG_INFINITY; dims]);
             for q in p.chunks_exact(dims) {
@@ -217,18 +228,18 @@ impl Trainer {
     /// # Shapes
     /// - output: `[batch, channels (+ 1), depth, crop, crop]` on the training device
     pub fn fake_batch_fused(&self, generator: &FusedGenerator, counters: &[u64]) -> Tensor<5> {
-        let samples = self.fake_samples(counters);
+        let samples = self.fake_samples(counters, 0);
         let (planar, shape) = self.paint_fused(generator, &samples);
         Tensor::from_data(TensorData::new(planar, shape), &self.device)
     }
 
     /// Each generated sample's coordinates `[points, axes]`, latent field and condition (empty
     /// for an unconditioned run), as [`Trainer::fake_batch`] draws them.
-    pub(super) fn fake_samples(&self, counters: &[u64]) -> Vec<FakeSample> {
+    pub(super) fn fake_samples(&self, counters: &[u64], draw: u64) -> Vec<FakeSample> {
         (0..self.config.batch)
             .into_par_iter()
             .map(|i| {
-                let (p, field) = self.sample_coordinates(i, counters);
+                let (p, field) = self.sample_coordinates(i, counters, draw);
                 FakeSample {
                     p,
                     field,

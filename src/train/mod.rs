@@ -5,6 +5,7 @@
 //! - [`config`]: every setting, the flags that override them, the run's kind;
 //! - [`data`]: the exemplar and its random crops (over 2 or 3 axes), the critic's real input;
 //! - [`fakes`]: generated crops, the critic's fake input;
+//! - [`diversity`]: a hinge that keeps generated crops as varied as the exemplar's;
 //! - [`step`]: one iteration, random streams and initialisation; on the CPU the critic's and
 //!   the generator's steps are fused ([`crate::critic::fused`], [`crate::generator::backward`]),
 //!   elsewhere they go through burn's autodiff;
@@ -17,6 +18,7 @@ pub mod adam;
 pub mod average;
 pub mod config;
 pub mod data;
+pub mod diversity;
 pub mod fakes;
 pub mod lock;
 pub mod recipe;

@@ -9,7 +9,7 @@ use burn::module::{Module, ModuleMapper, Param};
 use burn::optim::GradientsParams;
 use burn::prelude::*;
 
-use super::Trainer;
+use super::{Trainer, diversity};
 use crate::critic::fused::FusedCritic;
 use crate::generator::backward::{self, GeneratorGradients};
 use crate::generator::fused::FusedGenerator;
@@ -28,6 +28,7 @@ pub(crate) mod stream {
     pub const PREVIEW: u64 = 9;
     pub const GUIDE: u64 = 10;
     pub const SLICE_AXIS: u64 = 11;
+    pub const DIVERSITY: u64 = 12;
 }
 
 /// Uniform in [0, 1) from a seed and counters.
@@ -184,6 +185,7 @@ impl Trainer {
                     &self.generator.valid(),
                     &self.device.clone().inner(),
                     &counters,
+                    0,
                 )),
             };
             let alphas: Vec<f32> = (0..cfg.batch as u64)
@@ -238,9 +240,25 @@ impl Trainer {
     fn generator_step_framework(&mut self, counters: &[u64], stats: &mut IterationStats) {
         let t = Instant::now();
         let frozen = self.critic.clone().no_grad();
-        let fake = self.fake_batch(&self.generator, &self.device, counters);
-        let loss = frozen.forward(fake).mean().neg();
+        let fake = self.fake_batch(&self.generator, &self.device, counters, 0);
+        let mut loss = frozen.forward(fake.clone()).mean().neg();
         stats.generator_loss = loss.clone().into_scalar::<f32>();
+        if self.config.diversity > 0.0 {
+            // The diversity hinge (see `diversity`) through autodiff: crops and their twins.
+            let twin = self.fake_batch(&self.generator, &self.device, counters, 1);
+            let [b, _, d, h, w] = fake.dims();
+            let c = self.exemplar.channels;
+            let diff = fake.narrow(1, 0, c) - twin.narrow(1, 0, c); // [b, c, d, h, w]
+            let squared = (diff.clone() * diff).reshape([b, c * d * h * w]).sum_dim(1); // [b, 1]
+            let distance = squared.add_scalar(1e-24).sqrt();
+            let hinge = distance
+                .neg()
+                .add_scalar(self.diversity_target())
+                .clamp_min(0.0)
+                .mean()
+                .mul_scalar(self.config.diversity);
+            loss = loss + hinge;
+        }
         stats.times.generator_forward += t.elapsed().as_secs_f64();
         let t = Instant::now();
         let grads = GradientsParams::from_grads(loss.backward(), &self.generator);
@@ -262,24 +280,37 @@ impl Trainer {
     ) {
         let t = Instant::now();
         let weights = self.generator.weights();
-        let samples = self.fake_samples(counters);
-        let (fake, shape) = self.paint_fused(&FusedGenerator::new(weights.clone()), &samples);
+        let samples = self.fake_samples(counters, 0);
+        let fused = FusedGenerator::new(weights.clone());
+        let (fake, shape) = self.paint_fused(&fused, &samples);
         let (scores, dx) = critic.scores_and_input_gradient(&fake, shape); // dx: [b · n, cg]
         let b = scores.len();
         stats.generator_loss = -scores.iter().sum::<f32>() / b as f32;
-        stats.times.generator_forward += t.elapsed().as_secs_f64();
-
-        let t = Instant::now();
         let (c, cg) = (self.exemplar.channels, shape[1]);
-        let (n, dims) = (self.crop_points(), self.kind.generator_axes());
-        let scale = vec![self.config.latent_scale; dims];
+        let n = self.crop_points();
         // d loss / d output = -dD/dx / b, without the condition's channel: [b · n, c]
-        let d_output: Vec<f32> = dx
+        let mut d_output: Vec<f32> = dx
             .chunks_exact(cg)
             .flat_map(|px| px[..c].iter().map(|v| -v / b as f32))
             .collect();
+        // The diversity hinge: the crops' twins, and the hinge's gradient on both.
+        let mut twins = Vec::new();
+        if self.config.diversity > 0.0 {
+            twins = self.fake_samples(counters, 1);
+            let (twin, _) = self.paint_fused(&fused, &twins);
+            let (target, weight) = (self.diversity_target(), self.config.diversity as f32);
+            let h = diversity::hinge(&fake, &twin, [b, cg, n], c, target, weight);
+            d_output.iter_mut().zip(&h.d_a).for_each(|(d, h)| *d += h);
+            d_output.extend(h.d_b); // the twins' rows follow the crops'
+        }
+        stats.times.generator_forward += t.elapsed().as_secs_f64();
+
+        let t = Instant::now();
+        let dims = self.kind.generator_axes();
+        let scale = vec![self.config.latent_scale; dims];
         let groups: Vec<backward::Group> = samples
             .iter()
+            .chain(&twins)
             .enumerate()
             .flat_map(|(i, sample)| {
                 let d_output = &d_output;
