@@ -14,6 +14,12 @@
 //!   sooner than the exemplar): `flecked_2.jpg` at 500 iterations scored 35.99 ± 0.22 against
 //!   20.92 ± 0.48 with K from 1, and its samples still repeated (strength 0.90 x 0.70, against
 //!   0.77 x 0.78; the photo's 0.03): the generator repeats on the encoding's finer octaves.
+//!
+//! One choice from the period is made: a plain image with no clear period on either axis
+//! trains with the diversity hinge ([`NO_PERIOD_DIVERSITY`], [`super::diversity`]), which
+//! keeps its samples from repeating as a grid (README "Training on photographs" has the
+//! ablation). A periodic exemplar keeps the paper's loss: its crops and their twins at the same
+//! phase should be alike, not as different as two random crops.
 
 use std::collections::BTreeSet;
 
@@ -92,14 +98,20 @@ pub fn initial_k(measured: &Measured, resize: f64, crop: usize, octaves: usize) 
         .collect()
 }
 
-/// Writes the exemplar's choices into `config` (gray), except the keys in `explicit`, and says
-/// what was measured: each axis's period where the exemplar clearly repeats, else its strongest
-/// repeat and how weak it is, and the K that would line an octave up with the period
+/// The diversity hinge's weight ([`super::diversity`]) for a plain image with no clear period
+/// on either axis.
+pub const NO_PERIOD_DIVERSITY: f64 = 1.0;
+
+/// Writes the exemplar's choices into `config` (gray; for a `plain` image, one neither solid
+/// nor guided, with no clear period: the diversity hinge), except the keys in `explicit`, and
+/// says what was measured: each axis's period where the exemplar clearly repeats, else its
+/// strongest repeat and how weak it is, and the K that would line an octave up with the period
 /// (`k_init`; not set by default: see the module's notes). Returns the lines for the user.
 pub fn apply(
     measured: &Measured,
     config: &mut TrainConfig,
     explicit: &BTreeSet<String>,
+    plain: bool,
 ) -> Vec<String> {
     let along = |axis: usize, name: &str| match (measured.period(axis), measured.repeat[axis]) {
         (Some(p), Some(r)) => format!("period {p:.1} px {name} (repeat {:.2})", r.strength),
@@ -122,6 +134,13 @@ pub fn apply(
     if !explicit.contains("gray") && measured.gray {
         config.gray = true;
         lines.push("every pixel's channels are equal: trained as gray (1 channel)".into());
+    }
+    let stochastic = measured.period(0).is_none() && measured.period(1).is_none();
+    if plain && stochastic && !explicit.contains("diversity") {
+        config.diversity = NO_PERIOD_DIVERSITY;
+        lines.push(format!(
+            "no clear period: diversity {NO_PERIOD_DIVERSITY} (a generated crop and its twin under another latent field must differ as two crops of the exemplar do, so the samples do not repeat as a grid)"
+        ));
     }
     lines
 }
@@ -201,7 +220,8 @@ pub fn settle(
     }
     if let super::ExemplarSource::Image(path) = source {
         let exemplar = crate::exemplar::read_exemplar(path)?;
-        lines.extend(apply(&measure(&exemplar), config, explicit));
+        let plain = !config.solid && config.guide.is_none();
+        lines.extend(apply(&measure(&exemplar), config, explicit, plain));
     }
     if !explicit.contains("iterations") && !explicit.contains("time") {
         config.time = Some(DEFAULT_TIME.into());
@@ -271,7 +291,7 @@ mod tests {
             resize: 1.0,
             ..TrainConfig::default()
         };
-        let lines = apply(&measured, &mut config, &BTreeSet::new());
+        let lines = apply(&measured, &mut config, &BTreeSet::new(), true);
         assert!(
             lines[0].contains("no clear period down (strongest repeat 31.0 px"),
             "{lines:?}"
@@ -279,5 +299,30 @@ mod tests {
         // Without a period, the suggested K spans the exemplar (320 and 512 px in 32 px crops).
         assert!(lines[0].contains("k_init = [10.000, 16.000]"), "{lines:?}");
         assert_eq!(config.k_init, None, "K is only suggested");
+        // No clear period on either axis: the diversity hinge, unless the run set it or the
+        // image is a solid texture's or guided.
+        assert_eq!(config.diversity, NO_PERIOD_DIVERSITY, "{lines:?}");
+        assert!(
+            lines
+                .iter()
+                .any(|l| l.starts_with("no clear period: diversity 1"))
+        );
+        let explicit = BTreeSet::from(["diversity".to_string()]);
+        let mut config = TrainConfig::default();
+        apply(&measured, &mut config, &explicit, true);
+        apply(&measured, &mut config, &BTreeSet::new(), false);
+        assert_eq!(config.diversity, 0.0);
+    }
+
+    #[test]
+    fn a_periodic_exemplar_keeps_the_papers_loss() {
+        let mut config = TrainConfig::default();
+        let lines = apply(
+            &measured([Some(40.0), None]),
+            &mut config,
+            &BTreeSet::new(),
+            true,
+        );
+        assert_eq!(config.diversity, 0.0, "{lines:?}");
     }
 }
