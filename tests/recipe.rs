@@ -196,6 +196,52 @@ fn flags_and_config_keys_override_the_recipe() {
     );
 }
 
+/// A photo with no clear period trains with the diversity hinge, unless the run's config or
+/// flags set it.
+#[test]
+fn a_photo_without_a_period_trains_with_the_diversity_hinge() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // White noise: no period on either axis.
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let noise: Vec<f32> = (0..96 * 96 * 3)
+        .map(|_| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / 8_388_608.0 - 1.0
+        })
+        .collect();
+    ipfn::io::write_png(&d.join("n.png"), 96, 96, 3, &noise).unwrap();
+    std::fs::write(d.join("tiny.toml"), TINY).unwrap();
+    std::fs::write(d.join("off.toml"), format!("{TINY}\ndiversity = 0.0\n")).unwrap();
+    let train = |config: &str, out: &str, flags: &[&str]| {
+        let mut args = vec![
+            "train",
+            "n.png",
+            "--config",
+            config,
+            "--crop",
+            "32",
+            "--iterations",
+            "1",
+            "--out",
+            out,
+        ];
+        args.extend_from_slice(flags);
+        let run = ipfn(d, &args);
+        assert!(run.status.success(), "{}", stderr(&run));
+        let saved = std::fs::read_to_string(d.join(out).join("config.toml")).unwrap();
+        let saved = TrainConfig::from_toml(&saved, std::path::Path::new("config.toml")).unwrap();
+        (saved.diversity, stderr(&run))
+    };
+    let (diversity, err) = train("tiny.toml", "on", &[]);
+    assert_eq!(diversity, 1.0, "{err}");
+    assert!(err.contains("no clear period: diversity 1"), "{err}");
+    assert_eq!(train("off.toml", "off", &[]).0, 0.0);
+    assert_eq!(train("tiny.toml", "flag", &["--diversity", "0.5"]).0, 0.5);
+}
+
 #[test]
 fn durations_parse_and_bad_ones_are_one_line_errors() {
     use ipfn::train::config::parse_duration;

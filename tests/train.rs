@@ -555,6 +555,16 @@ fn shipped_presets_parse() {
         (paper.iterations, paper.batch, paper.crop),
         (12_500, 8, 128)
     );
+    // The authors' files name K's rate and the diversity hinge, so `ipfn train`'s choices for a
+    // CPU and for a photo without a period (keys a config leaves out) cannot change them.
+    for name in ["paper.toml", "default.toml"] {
+        let keys = TrainConfig::keys_in(&std::fs::read_to_string(dir.join(name)).unwrap());
+        assert!(
+            keys.contains("k_lr") && keys.contains("diversity"),
+            "{name}"
+        );
+        assert_eq!((read(name).k_lr, read(name).diversity), (1.0, 0.0));
+    }
     let quick = read("quick.toml");
     assert!(quick.iterations > 0 && quick.crop.is_multiple_of(16));
     // What a CPU run takes: quick.toml's network and crop at the exemplar's own scale, K at 10x
