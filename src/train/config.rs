@@ -577,7 +577,8 @@ overrides! {
     /// K's learning rate as a multiple of --lr, e.g. 10; 1: the same rate as the weights.
     k_lr: f64, fixed;
     /// Weight of the diversity hinge: each generated crop and its twin under a fresh latent
-    /// field must differ as much as two crops of the exemplar do, e.g. 1; 0: the paper's loss.
+    /// field must differ as much as two crops of the exemplar do; 0: the paper's loss. Default:
+    /// 1 for an image with no clear period (the settings printed before training say so), else 0.
     diversity: f64, fixed;
     /// Seed of every random draw.
     seed: u64, fixed;
