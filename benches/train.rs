@@ -8,6 +8,9 @@
 //! - and, for the authors' config, beside the authors' PyTorch code on the same 2-core machine
 //!   (40.6 s, measured separately: DESIGN.md §3; not re-run here).
 //!
+//! A third row times `quick.toml` with the diversity hinge (`diversity = 1`, what a photo with
+//! no clear period trains with), whose floor adds the twins' generator forward and backward.
+//!
 //! `cargo bench --bench train` prints the median of `IPFN_BENCH_RUNS` iterations (default 3)
 //! after one warm-up, and where the fused iteration's time went. `IPFN_BENCH_CONFIG=FILE`
 //! times that config instead of the two.
@@ -60,12 +63,23 @@ fn main() {
         .unwrap_or(3);
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let exemplar = root.join("exemplars/honeycomb.png");
-    let configs: Vec<PathBuf> = match std::env::var("IPFN_BENCH_CONFIG") {
-        Ok(path) => vec![path.into()],
-        Err(_) => vec![
-            root.join("configs/quick.toml"),
-            root.join("configs/default.toml"),
-        ],
+    let read = |path: PathBuf| {
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        (name, TrainConfig::from_file(&path).unwrap().0)
+    };
+    let configs: Vec<(String, TrainConfig)> = match std::env::var("IPFN_BENCH_CONFIG") {
+        Ok(path) => vec![read(path.into())],
+        Err(_) => {
+            let quick = read(root.join("configs/quick.toml"));
+            let hinge = (
+                format!("{} + diversity 1", quick.0),
+                TrainConfig {
+                    diversity: 1.0,
+                    ..quick.1.clone()
+                },
+            );
+            vec![quick, read(root.join("configs/default.toml")), hinge]
+        }
     };
     println!(
         "training on the CPU ({} threads), honeycomb exemplar, median of {runs}",
@@ -76,9 +90,7 @@ fn main() {
     );
     println!("|---|---|---|---|---|---|---|");
     let mut splits = Vec::new();
-    for path in &configs {
-        let (config, _) = TrainConfig::from_file(path).unwrap();
-        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+    for (name, config) in configs {
         let (fused, parts) = time_iteration(&exemplar, &config, false, runs);
         let (framework, _) = time_iteration(&exemplar, &config, true, runs);
         let kind = config.run_kind().unwrap();

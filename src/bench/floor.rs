@@ -1,7 +1,8 @@
 //! The floor of one training iteration on the CPU: the matrix products of both networks (the
 //! generator's forward and backward, the critic's forward, exact penalty and backward), as
 //! bare `gemm` calls of the same shapes on all cores, and nothing else (no im2col, activations,
-//! encoding or Adam). The shapes are the fused step's ([`crate::critic::fused`],
+//! encoding or Adam). With the diversity hinge, each generator step's twins add a generator
+//! forward and backward. The shapes are the fused step's ([`crate::critic::fused`],
 //! [`crate::generator::backward`]), less the generator's forward that its backward runs again.
 
 use crate::generator::fused::matmul_parallel;
@@ -43,10 +44,15 @@ pub fn iteration_products(
     penalty.extend(transposed(b)); // dD/dx down the layers,
     penalty.extend(weights(b)); // and its adjoint up them
     penalty.extend(forward(b));
-    let mut generator_step = g_forward;
+    let mut generator_step = g_forward.clone();
     generator_step.extend(forward(b)); // scores of the fakes
     generator_step.extend(transposed(b)); // dD/dx
-    generator_step.extend(g_backward);
+    generator_step.extend(&g_backward);
+    if config.diversity > 0.0 {
+        // The diversity hinge: the fakes' twins, painted and taken back through the generator.
+        generator_step.extend(g_forward);
+        generator_step.extend(g_backward);
+    }
     let mut all = Vec::new();
     for step in 0..config.critic_steps {
         all.extend(&critic_step);
