@@ -26,8 +26,14 @@ pub const TARGET_PAIRS: usize = 64;
 impl Trainer {
     /// `T`: the mean L2 distance, over the exemplar's channels, between two random crops of the
     /// exemplar at the working scale ([`TARGET_PAIRS`] pairs from their own random stream, so
-    /// the same run always has the same target).
+    /// the same run always has the same target). Measured once, on first use.
     pub fn diversity_target(&self) -> f32 {
+        *self
+            .diversity_target
+            .get_or_init(|| self.measure_diversity_target())
+    }
+
+    fn measure_diversity_target(&self) -> f32 {
         let crop = |pair: usize, side: u64| -> Vec<f32> {
             let origin = self.crop_origin(stream::DIVERSITY, pair, &[side]);
             self.crop_rows(&origin)

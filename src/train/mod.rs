@@ -2,7 +2,7 @@
 //!
 //! One path for every kind of run ([`RunKind`]: image, solid texture, volume; guided or
 //! density-controlled), split by idea:
-//! - [`config`]: every setting, the flags that override them, the run's kind;
+//! - [`config`]: every setting and the run's kind; [`overrides`]: the flags that override them;
 //! - [`data`]: the exemplar and its random crops (over 2 or 3 axes), the critic's real input;
 //! - [`fakes`]: generated crops, the critic's fake input;
 //! - [`diversity`]: a hinge that keeps generated crops as varied as the exemplar's;
@@ -21,6 +21,7 @@ pub mod data;
 pub mod diversity;
 pub mod fakes;
 pub mod lock;
+pub mod overrides;
 pub mod recipe;
 pub mod run;
 pub mod score;
@@ -30,9 +31,10 @@ use std::path::{Path, PathBuf};
 
 use burn::prelude::*;
 
-pub use config::{DEFAULT_SDF_SCALE, RunKind, TrainConfig, TrainOverrides};
+pub use config::{DEFAULT_SDF_SCALE, RunKind, TrainConfig};
 pub use data::{ExemplarSource, load_exemplar};
 pub use fakes::FLEX_TRAIN_CHUNK;
+pub use overrides::TrainOverrides;
 pub use run::{RunEnd, RunState, metrics_header};
 pub use step::{IterationStats, StepTimes};
 
@@ -72,6 +74,9 @@ pub struct Trainer {
     lock: Option<lock::RunLock>,
     /// Steps through the framework's autodiff even on the CPU ([`Trainer::framework_steps`]).
     framework_only: bool,
+    /// The diversity hinge's target distance, measured on first use
+    /// ([`Trainer::diversity_target`]).
+    diversity_target: std::sync::OnceLock<f32>,
 }
 
 impl Trainer {
@@ -125,6 +130,7 @@ impl Trainer {
             best: None,
             lock: None,
             framework_only: false,
+            diversity_target: Default::default(),
         })
     }
 
@@ -292,6 +298,7 @@ impl Trainer {
             best,
             lock: Some(lock),
             framework_only: false,
+            diversity_target: Default::default(),
         })
     }
 
