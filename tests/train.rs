@@ -435,16 +435,18 @@ fn fused_steps_follow_the_framework_with(diversity: f64) -> ipfn::generator::Gen
         ..tiny_network(3)
     };
     let device = Device::flex();
-    let trainer = |framework: bool| {
-        let run = dir
-            .path()
-            .join(if framework { "framework" } else { "fused" });
-        let t = Trainer::new(config.clone(), dir.path().join("ex.png"), &run, &device).unwrap();
-        if framework { t.framework_steps() } else { t }
+    let trainer = |name: &str| {
+        let run = dir.path().join(name);
+        Trainer::new(config.clone(), dir.path().join("ex.png"), &run, &device).unwrap()
     };
-    let (mut fused, mut framework) = (trainer(false), trainer(true));
+    let (mut fused, mut framework) = (trainer("fused"), trainer("framework").framework_steps());
+    // The generator's backward running its forward passes again (as for a batch too large to
+    // keep them) is the same update as keeping them.
+    let mut rerun = trainer("rerun").keep_passes_within(0);
     for _ in 0..3 {
         let (a, b) = (fused.step(), framework.step());
+        let again = rerun.step();
+        assert_eq!(a.generator_loss, again.generator_loss, "rerun passes");
         let close = |x: f32, y: f32| (x - y).abs() <= 1e-3 * y.abs().max(1.0);
         assert!(
             close(a.wasserstein, b.wasserstein),
@@ -466,6 +468,14 @@ fn fused_steps_follow_the_framework_with(diversity: f64) -> ipfn::generator::Gen
         );
     }
     let (a, b) = (fused.model().1, framework.model().1);
+    let again = rerun.model().1;
+    for (l, (x, y)) in a.layers.iter().zip(&again.layers).enumerate() {
+        let diff = common::max_abs_diff(&x.weight, &y.weight);
+        assert!(
+            diff < 1e-5,
+            "generator layer {l}: rerun passes differ by {diff}"
+        );
+    }
     assert_ne!(a.k, vec![1.0, 1.0], "K moved");
     assert!(
         common::max_abs_diff(&a.k, &b.k) < 1e-4,

@@ -20,46 +20,28 @@ use rayon::prelude::*;
 use super::geometry::Geometry;
 use super::{Critic, KERNEL};
 use crate::checkpoint::{Checkpoint, read_module};
-use crate::generator::fused::matmul_parallel;
+use crate::generator::fused::{matmul_parallel, product_parallel};
 
 /// `x · w^T` for channels-last `x` `[rows, patch]` and the framework's weight `w`
 /// `[out, patch]`: `[rows, out]`.
 fn times_transposed(x: &[f32], w: &[f32], rows: usize, patch: usize, out: usize) -> Vec<f32> {
-    let mut dst = vec![0f32; rows * out];
-    matmul_parallel(
-        &mut dst,
-        (rows, out, patch),
-        (x, (patch, 1)),
-        (w, (1, patch)),
-        false,
-    );
-    dst
+    product_parallel((rows, out, patch), (x, (patch, 1)), (w, (1, patch)))
 }
 
 /// `d · w` for `d` `[rows, out]` and `w` `[out, patch]`: `[rows, patch]`.
 fn times(d: &[f32], w: &[f32], rows: usize, out: usize, patch: usize) -> Vec<f32> {
-    let mut dst = vec![0f32; rows * patch];
-    matmul_parallel(
-        &mut dst,
-        (rows, patch, out),
-        (d, (out, 1)),
-        (w, (patch, 1)),
-        false,
-    );
-    dst
+    product_parallel((rows, patch, out), (d, (out, 1)), (w, (patch, 1)))
 }
 
-/// `d^T · x` for `d` `[rows, out]` and `x` `[rows, patch]`: a weight's gradient `[out, patch]`.
-fn weight_gradient(d: &[f32], x: &[f32], rows: usize, out: usize, patch: usize) -> Vec<f32> {
-    let mut dst = vec![0f32; out * patch];
-    matmul_parallel(
-        &mut dst,
-        (out, patch, rows),
-        (d, (1, out)),
-        (x, (patch, 1)),
-        false,
-    );
-    dst
+/// `dw += d^T · x` for `d` `[rows, out]` and `x` `[rows, patch]`: a weight's gradient
+/// `[out, patch]`, summed in place (`dw` empty: none yet, so the product is written).
+fn add_weight_gradient(dw: &mut Vec<f32>, d: &[f32], x: &[f32], rows: usize, patch: usize) {
+    let out = d.len() / rows;
+    let (shape, d, x) = ((out, patch, rows), (d, (1, out)), (x, (patch, 1)));
+    match dw.is_empty() {
+        true => *dw = product_parallel(shape, d, x),
+        false => matmul_parallel(dw, shape, d, x, true),
+    }
 }
 
 /// `[batch, channels, positions...]` to `[batch · positions, channels]`.
@@ -292,7 +274,7 @@ impl FusedCritic {
             for (d, a) in d.iter_mut().zip(&pass.activations[l]) {
                 *d *= slope_at(*a, self.slope); // through the LeakyReLU: d = dz
             }
-            grads.add(l, &weight_gradient(&d, &pass.cols[l], rows, o, patch));
+            add_weight_gradient(&mut grads.weights[l], &d, &pass.cols[l], rows, patch);
             // Each half (real, fake) summed on its own, then added, as the framework's two
             // graphs do: the halves nearly cancel, and Adam's first steps are about
             // g / (|g| + eps), so the residue's rounding matters.
@@ -371,7 +353,7 @@ impl FusedCritic {
                 geometry.patch(),
             );
             let cols = geometry.im2col(&delta, batch);
-            grads.add(l, &weight_gradient(&ts[l], &cols, rows, o, patch));
+            add_weight_gradient(&mut grads.weights[l], &ts[l], &cols, rows, patch);
             delta = times_transposed(&cols, &self.weights[l], rows, patch, o);
             for (d, a) in delta.iter_mut().zip(&masks[l]) {
                 *d *= slope_at(*a, self.slope);
@@ -411,14 +393,31 @@ impl FusedCritic {
                     .map(move |(r, f)| alpha[b] * r + (1.0 - alpha[b]) * f)
             })
             .collect();
-        let mut grads = Gradients::zeros(self);
-        let pass = self.forward(&both, 2 * batch, true);
         let inv = 1.0 / batch as f32;
         let ds: Vec<f32> = (0..2 * batch)
             .map(|i| if i < batch { -inv } else { inv })
             .collect();
-        self.backward_scores(&pass, &ds, &mut grads);
-        let penalty = lambda.map_or(0.0, |l| self.penalty(&x_hat, batch, l, &mut grads));
+        // The scores' and the penalty's shares are independent: each fills the other's idle
+        // moments; they are summed in that order, whatever the threads.
+        let ((pass, mut grads), penalty) = rayon::join(
+            || {
+                let mut grads = Gradients::new(self);
+                let pass = self.forward(&both, 2 * batch, true);
+                self.backward_scores(&pass, &ds, &mut grads);
+                (pass, grads)
+            },
+            || {
+                lambda.map(|lambda| {
+                    let mut grads = Gradients::new(self);
+                    let penalty = self.penalty(&x_hat, batch, lambda, &mut grads);
+                    (penalty, grads)
+                })
+            },
+        );
+        let penalty = penalty.map_or(0.0, |(penalty, share)| {
+            grads.add(&share);
+            penalty
+        });
         let mean = |s: &[f32]| s.iter().sum::<f32>() * inv;
         CriticStep {
             wasserstein: mean(&pass.scores[..batch]) - mean(&pass.scores[batch..]),
@@ -437,19 +436,32 @@ struct Gradients {
 }
 
 impl Gradients {
-    fn zeros(critic: &FusedCritic) -> Self {
+    /// No weight's gradient yet (empty, see [`add_weight_gradient`]), zero for the rest.
+    fn new(critic: &FusedCritic) -> Self {
         Self {
-            weights: critic.weights.iter().map(|w| vec![0.0; w.len()]).collect(),
+            weights: vec![Vec::new(); critic.weights.len()],
             biases: critic.biases.iter().map(|b| vec![0.0; b.len()]).collect(),
             head: vec![0.0; critic.head.len()],
             head_bias: 0.0,
         }
     }
 
-    fn add(&mut self, layer: usize, dw: &[f32]) {
-        for (g, v) in self.weights[layer].iter_mut().zip(dw) {
-            *g += v;
+    /// Adds `other`'s gradients, value by value.
+    fn add(&mut self, other: &Gradients) {
+        let add = |a: &mut Vec<f32>, b: &[f32]| match a.is_empty() {
+            true => a.extend_from_slice(b),
+            false => a
+                .par_chunks_mut(1 << 14)
+                .zip(b.par_chunks(1 << 14))
+                .for_each(|(a, b)| a.iter_mut().zip(b).for_each(|(a, b)| *a += b)),
+        };
+        let pairs = self.weights.iter_mut().zip(&other.weights);
+        let pairs = pairs.chain(self.biases.iter_mut().zip(&other.biases));
+        for (a, b) in pairs {
+            add(a, b);
         }
+        add(&mut self.head, &other.head);
+        self.head_bias += other.head_bias;
     }
 
     /// The gradients in the framework critic's layouts (see [`CriticStep`]).

@@ -4,6 +4,9 @@
 
 use rayon::prelude::*;
 
+/// The most taps a convolution has: 4 per axis on 3 axes.
+const MAX_TAPS: usize = 64;
+
 /// One stride-2 convolution's shape over 3 axes (depth, rows, cols); a 2D critic's depth axis
 /// has one tap, stride 1 and no padding.
 #[derive(Debug, Clone, Copy)]
@@ -78,18 +81,27 @@ impl Geometry {
     }
 
     /// `[batch · out positions, patch]` from channels-last `x` `[batch · in positions, inputs]`.
+    /// Each row is written in order, channel by channel, reading its taps' inputs side by side.
     pub(super) fn im2col(&self, x: &[f32], batch: usize) -> Vec<f32> {
         let [patch, pin, pout, c, taps] = self.sizes();
-        let mut cols = vec![0f32; batch * pout * patch];
-        cols.par_chunks_mut(patch).enumerate().for_each(|(r, row)| {
-            let (b, p) = (r / pout, r % pout);
-            self.for_taps(p, |tap, i| {
-                let src = &x[(b * pin + i) * c..][..c];
-                for (channel, v) in src.iter().enumerate() {
-                    row[channel * taps + tap] = *v;
+        let len = batch * pout * patch;
+        let mut cols = Vec::with_capacity(len);
+        cols.spare_capacity_mut()[..len]
+            .par_chunks_mut(patch)
+            .enumerate()
+            .for_each(|(r, row)| {
+                let (b, p) = (r / pout, r % pout);
+                // Where each tap's inputs start in `x`, or none in the padding.
+                let mut sources = [None; MAX_TAPS];
+                self.for_taps(p, |tap, i| sources[tap] = Some((b * pin + i) * c));
+                for (channel, row) in row.chunks_exact_mut(taps).enumerate() {
+                    for (v, source) in row.iter_mut().zip(&sources) {
+                        v.write(source.map_or(0.0, |s| x[s + channel]));
+                    }
                 }
             });
-        });
+        // SAFETY: every one of the `len` values was written above.
+        unsafe { cols.set_len(len) };
         cols
     }
 

@@ -1,9 +1,10 @@
 //! The generator's gradient on the CPU, by hand: given `d loss / d output` at a set of points,
 //! the gradient of every weight, bias and K, with every product one `gemm` call.
 //!
-//! Points are taken in groups of at most [`GROUP_POINTS`], in parallel: a group's forward pass is
-//! run again with its activations kept (so memory is bounded by the group, not the batch), then
-//! the backward:
+//! Points are taken in groups of at most [`GROUP_POINTS`], in parallel: each group's forward
+//! pass with its activations kept (a [`Pass`]: the caller's, kept from painting the fakes when
+//! the batch's fit in memory, or run again here, so memory is bounded by the group), then the
+//! backward:
 //! through tanh, then per layer `dW += x^T · d`, `db += Σ d`, `d = (d · W^T) ⊙ [x > 0]`; at the
 //! input, only the encoding's columns depend on a parameter, K: with `q = p / K` and the
 //! encoding's `sin(f q)`, `cos(f q)`, `dq = Σ_j f_j (d_sin cos - d_cos sin)` and
@@ -51,17 +52,44 @@ pub struct Group<'a> {
     pub d_output: &'a [f32],
 }
 
-/// The gradient of the loss through every group, each on one thread, summed in order.
+/// A group's forward pass with every layer's input kept: `inputs[l]` is `[n, inputs of layer
+/// l]`, and the last is the output `[n, channels]`.
+pub struct Pass {
+    inputs: Vec<Vec<f32>>,
+}
+
+impl Pass {
+    /// The generator's output at the group's points, `[n, channels]`.
+    pub fn output(&self) -> &[f32] {
+        self.inputs.last().expect("a pass has an output")
+    }
+}
+
+/// Floats a [`Pass`] keeps per point.
+pub fn pass_floats_per_point(w: &GeneratorWeights) -> usize {
+    let last = w.layers.last().map_or(0, |l| l.outputs);
+    w.layers.iter().map(|l| l.inputs).sum::<usize>() + last
+}
+
+/// The gradient of the loss through every group, each on one thread, summed in order. With
+/// `passes` (one per group, from [`forward`]), their kept activations are used; without, each
+/// group's forward pass is run again.
 pub fn gradients(
     w: &GeneratorWeights,
     latent_scale: &[f32],
     groups: &[Group],
+    passes: Option<&[Pass]>,
 ) -> GeneratorGradients {
+    debug_assert!(passes.is_none_or(|p| p.len() == groups.len()));
     let parts: Vec<GeneratorGradients> = groups
         .par_iter()
-        .map(|group| {
+        .enumerate()
+        .map(|(i, group)| {
             let mut grads = GeneratorGradients::zeros(w);
-            accumulate(w, latent_scale, group, &mut grads);
+            match passes {
+                Some(passes) => backward(w, group, &passes[i], &mut grads),
+                None => accumulate(w, latent_scale, group, &mut grads),
+            }
             grads
         })
         .collect();
@@ -78,30 +106,31 @@ pub fn gradients(
 }
 
 /// Adds the gradient of the loss through `group` (at most [`GROUP_POINTS`] points) to `grads`,
-/// on the calling thread.
+/// on the calling thread, running its forward pass again.
 pub fn accumulate(
     w: &GeneratorWeights,
     latent_scale: &[f32],
     group: &Group,
     grads: &mut GeneratorGradients,
 ) {
-    let dims = w.k.len();
-    let n = group.p.len() / dims;
-    debug_assert!(n <= GROUP_POINTS);
-    // Forward, keeping every layer's input. xs[l]: [n, layers[l].inputs]
-    let mut xs: Vec<Vec<f32>> = Vec::with_capacity(w.layers.len() + 1);
+    let pass = forward(w, latent_scale, group.p, group.field, group.guide);
+    backward(w, group, &pass, grads);
+}
+
+/// The forward pass at points `p` `[n, dims]` (their latent field and guidance values, or
+/// none), keeping every layer's input, on the calling thread.
+pub fn forward(
+    w: &GeneratorWeights,
+    latent_scale: &[f32],
+    p: &[f32],
+    field: &LatentField,
+    guide: &[f32],
+) -> Pass {
+    let n = p.len() / w.k.len();
+    let mut inputs: Vec<Vec<f32>> = Vec::with_capacity(w.layers.len() + 1);
     let mut rows = vec![0f32; n * w.layers[0].inputs];
-    let mut u = Vec::new();
-    input_rows(
-        w,
-        group.p,
-        group.field,
-        latent_scale,
-        group.guide,
-        &mut rows,
-        &mut u,
-    );
-    xs.push(rows);
+    input_rows(w, p, field, latent_scale, guide, &mut rows, &mut Vec::new());
+    inputs.push(rows);
     let last = w.layers.len() - 1;
     for (l, layer) in w.layers.iter().enumerate() {
         let (k, m) = (layer.inputs, layer.outputs);
@@ -109,7 +138,7 @@ pub fn accumulate(
         matmul_strided(
             &mut y,
             (n, m, k),
-            &xs[l],
+            &inputs[l],
             (k, 1),
             &layer.weight,
             (m, 1),
@@ -124,14 +153,21 @@ pub fn accumulate(
                 };
             }
         }
-        xs.push(y);
+        inputs.push(y);
     }
-    // Backward. d: [n, outputs of layer l]
-    let out = &xs[last + 1];
+    Pass { inputs }
+}
+
+/// Adds the gradient of the loss through `group`, whose forward pass is `pass`, to `grads`.
+fn backward(w: &GeneratorWeights, group: &Group, pass: &Pass, grads: &mut GeneratorGradients) {
+    let xs = &pass.inputs;
+    let n = group.p.len() / w.k.len();
+    debug_assert!(n <= GROUP_POINTS);
+    // d: [n, outputs of layer l]
     let mut d: Vec<f32> = group
         .d_output
         .iter()
-        .zip(out)
+        .zip(pass.output())
         .map(|(g, y)| g * (1.0 - y * y))
         .collect();
     for (l, layer) in w.layers.iter().enumerate().rev() {
@@ -147,9 +183,7 @@ pub fn accumulate(
         matmul_strided(&mut dx, (n, k, m), &d, (m, 1), &layer.weight, (1, m), false);
         if l > 0 {
             for (g, x) in dx.iter_mut().zip(&xs[l]) {
-                if *x <= 0.0 {
-                    *g = 0.0; // through the ReLU
-                }
+                *g = if *x > 0.0 { *g } else { 0.0 }; // through the ReLU, without a branch
             }
         }
         d = dx;
@@ -250,7 +284,13 @@ mod tests {
                 }
             })
             .collect();
-        let grads = gradients(&weights, &scale, &groups);
+        let grads = gradients(&weights, &scale, &groups, None);
+        let passes: Vec<Pass> = groups
+            .iter()
+            .map(|g| forward(&weights, &scale, g.p, g.field, g.guide))
+            .collect();
+        let kept = gradients(&weights, &scale, &groups, Some(&passes));
+        assert_eq!(grads, kept, "kept passes give the recomputed gradient");
         let close = |name: &str, got: &[f32], want: Vec<f32>| {
             crate::testing::assert_gradient_close(&format!("{dims}D {name}"), got, &want);
         };

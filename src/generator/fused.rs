@@ -59,8 +59,63 @@ pub fn matmul_parallel(
     );
 }
 
+/// `lhs · rhs` (strides as [`matmul_strided`]) into a new row-major `[m, n]` on rayon's pool,
+/// written once by `gemm` (no zeroing pass first): the fused critic's products.
+pub fn product_parallel(
+    (m, n, k): (usize, usize, usize),
+    lhs: (&[f32], (usize, usize)),
+    rhs: (&[f32], (usize, usize)),
+) -> Vec<f32> {
+    if k == 0 {
+        return vec![0.0; m * n];
+    }
+    let mut dst = Vec::with_capacity(m * n);
+    let out = dst.spare_capacity_mut().as_mut_ptr().cast::<f32>();
+    // SAFETY: `out` has room for m · n values, and a product that does not accumulate writes
+    // every one of them (k > 0), without reading any.
+    unsafe {
+        gemm_raw(
+            out,
+            m * n,
+            (m, n, k),
+            lhs,
+            rhs,
+            false,
+            gemm::Parallelism::Rayon(0),
+        );
+        dst.set_len(m * n);
+    }
+    dst
+}
+
 fn matmul_threads(
     dst: &mut [f32],
+    shape: (usize, usize, usize),
+    lhs: (&[f32], (usize, usize)),
+    rhs: (&[f32], (usize, usize)),
+    accumulate: bool,
+    parallelism: gemm::Parallelism,
+) {
+    // SAFETY: `dst` is a unique borrow of initialised values, so it aliases neither input.
+    unsafe {
+        gemm_raw(
+            dst.as_mut_ptr(),
+            dst.len(),
+            shape,
+            lhs,
+            rhs,
+            accumulate,
+            parallelism,
+        )
+    }
+}
+
+/// # Safety
+/// `dst` is valid for writes of `dst_len` values (and, with `accumulate`, reads of
+/// initialised ones) and aliases neither input.
+unsafe fn gemm_raw(
+    dst: *mut f32,
+    dst_len: usize,
     (m, n, k): (usize, usize, usize),
     (lhs, (lhs_rs, lhs_cs)): (&[f32], (usize, usize)),
     (rhs, (rhs_rs, rhs_cs)): (&[f32], (usize, usize)),
@@ -72,19 +127,19 @@ fn matmul_threads(
     }
     let last = |rows: usize, cols: usize, rs: usize, cs: usize| (rows - 1) * rs + (cols - 1) * cs;
     assert!(
-        dst.len() >= m * n
+        dst_len >= m * n
             && lhs.len() > last(m, k, lhs_rs, lhs_cs)
             && rhs.len() > last(k, n, rhs_rs, rhs_cs),
         "matmul: buffers smaller than {m}x{k} . {k}x{n}"
     );
-    // SAFETY: the assert bounds every access at the strides given; `dst` is a unique borrow,
-    // so it aliases neither input.
+    // SAFETY: the assert bounds every access to the inputs at the strides given, and to `dst`
+    // (the caller's guarantee covers the rest).
     unsafe {
         gemm::gemm(
             m,
             n,
             k,
-            dst.as_mut_ptr(),
+            dst,
             1,
             n as isize,
             accumulate,

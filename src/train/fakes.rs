@@ -8,10 +8,15 @@ use rayon::prelude::*;
 
 use super::step::{stream, uniform};
 use super::{RunKind, Trainer};
-use crate::generator::Generator;
+use crate::generator::backward::{self, Pass};
 use crate::generator::fused::{CHUNK_POINTS, FusedGenerator};
+use crate::generator::{Generator, GeneratorWeights};
 use crate::latent::{DeviceLattice, LatentField, derive_seed};
 use crate::sample::crop_coordinate;
+
+/// The most memory a generator step's kept forward passes may take
+/// ([`Trainer::keeps_passes`]).
+pub const KEPT_PASSES_BYTES: usize = 512 << 20;
 
 /// Points per generator evaluation when training on flex (see [`Trainer::fake_values`]).
 pub const FLEX_TRAIN_CHUNK: usize = 4096;
@@ -257,8 +262,7 @@ impl Trainer {
         samples: &[FakeSample],
     ) -> (Vec<f32>, [usize; 5]) {
         let cfg = &self.config;
-        let (b, s, c) = (cfg.batch, cfg.crop, self.exemplar.channels);
-        let cg = c + self.kind.conditioned() as usize;
+        let (b, c) = (cfg.batch, self.exemplar.channels);
         let (n, dims) = (self.crop_points(), self.kind.generator_axes());
         let mut points = vec![0f32; b * n * c]; // [b, n, c]
         crate::synth::paint_fused(
@@ -279,6 +283,68 @@ impl Trainer {
                 }
             },
         );
+        self.planar(samples, &points)
+    }
+
+    /// Whether a generator step keeps the forward passes that painted its crops (and twins)
+    /// for its backward, rather than run them again: when they take at most
+    /// [`KEPT_PASSES_BYTES`] (`configs/quick.toml`'s 14 MB, `default.toml`'s 343 MB; not
+    /// `paper.toml`'s batch of 8 or a volume's), or as [`Trainer::keep_passes_within`] says.
+    pub(super) fn keeps_passes(&self, weights: &GeneratorWeights) -> bool {
+        let crops = self.config.batch * (1 + (self.config.diversity > 0.0) as usize);
+        let floats = crops * self.crop_points() * backward::pass_floats_per_point(weights);
+        floats * size_of::<f32>() <= self.kept_passes_bytes
+    }
+
+    /// `count` samples' points in groups of at most [`backward::GROUP_POINTS`], sample by
+    /// sample: `(sample, first point, end)`.
+    pub(super) fn point_groups(&self, count: usize) -> Vec<(usize, usize, usize)> {
+        let (n, group) = (self.crop_points(), backward::GROUP_POINTS);
+        let starts = move |i| {
+            (0..n)
+                .step_by(group)
+                .map(move |s| (i, s, (s + group).min(n)))
+        };
+        (0..count).flat_map(starts).collect()
+    }
+
+    /// `samples` painted group by group ([`Trainer::point_groups`]) with each group's forward
+    /// pass kept for the backward; the batch laid out as [`Trainer::paint_fused`]'s.
+    pub(super) fn paint_kept(
+        &self,
+        weights: &GeneratorWeights,
+        samples: &[FakeSample],
+    ) -> (Vec<f32>, [usize; 5], Vec<Pass>) {
+        let (n, c, dims) = (
+            self.crop_points(),
+            self.exemplar.channels,
+            self.kind.generator_axes(),
+        );
+        let scale = vec![self.config.latent_scale; dims];
+        let groups = self.point_groups(samples.len());
+        let passes: Vec<Pass> = groups
+            .par_iter()
+            .map(|&(i, start, end)| {
+                let sample = &samples[i];
+                let p = &sample.p[start * dims..end * dims];
+                let guide = sample.condition.get(start..end).unwrap_or(&[]);
+                backward::forward(weights, &scale, p, &sample.field, guide)
+            })
+            .collect();
+        let mut points = vec![0f32; samples.len() * n * c]; // [b, n, c]
+        for (&(i, start, end), pass) in groups.iter().zip(&passes) {
+            points[(i * n + start) * c..(i * n + end) * c].copy_from_slice(pass.output());
+        }
+        let (planar, shape) = self.planar(samples, &points);
+        (planar, shape, passes)
+    }
+
+    /// Painted values `[b, n, c]` with the samples' conditions as one more channel, and the
+    /// batch's shape: `[batch, channels (+ 1), depth, crop, crop]`.
+    fn planar(&self, samples: &[FakeSample], points: &[f32]) -> (Vec<f32>, [usize; 5]) {
+        let (s, c) = (self.config.crop, self.exemplar.channels);
+        let (b, n) = (samples.len(), self.crop_points());
+        let cg = c + self.kind.conditioned() as usize;
         let mut planar = vec![0f32; b * cg * n]; // [b, c (+ g), n]
         for (i, sample) in samples.iter().enumerate() {
             for q in 0..n {

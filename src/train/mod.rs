@@ -74,6 +74,9 @@ pub struct Trainer {
     lock: Option<lock::RunLock>,
     /// Steps through the framework's autodiff even on the CPU ([`Trainer::framework_steps`]).
     framework_only: bool,
+    /// The most memory a fused generator step keeps its forward passes in
+    /// ([`Trainer::keep_passes_within`]).
+    kept_passes_bytes: usize,
     /// The diversity hinge's target distance, measured on first use
     /// ([`Trainer::diversity_target`]).
     diversity_target: std::sync::OnceLock<f32>,
@@ -130,6 +133,7 @@ impl Trainer {
             best: None,
             lock: None,
             framework_only: false,
+            kept_passes_bytes: fakes::KEPT_PASSES_BYTES,
             diversity_target: Default::default(),
         })
     }
@@ -298,6 +302,7 @@ impl Trainer {
             best,
             lock: Some(lock),
             framework_only: false,
+            kept_passes_bytes: fakes::KEPT_PASSES_BYTES,
             diversity_target: Default::default(),
         })
     }
@@ -307,6 +312,14 @@ impl Trainer {
     /// For tests and benches that compare the two.
     pub fn framework_steps(mut self) -> Self {
         self.framework_only = true;
+        self
+    }
+
+    /// Keeps a fused generator step's forward passes (which paint its crops) for its backward
+    /// only while they take at most `bytes` (default [`fakes::KEPT_PASSES_BYTES`]); beyond, the
+    /// backward runs them again. 0 always runs them again. For tests that compare the two.
+    pub fn keep_passes_within(mut self, bytes: usize) -> Self {
+        self.kept_passes_bytes = bytes;
         self
     }
 

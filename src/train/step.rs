@@ -9,6 +9,7 @@ use burn::module::{Module, ModuleMapper, Param};
 use burn::optim::GradientsParams;
 use burn::prelude::*;
 
+use super::fakes::FakeSample;
 use super::{Trainer, diversity};
 use crate::critic::fused::FusedCritic;
 use crate::generator::backward::{self, GeneratorGradients};
@@ -280,9 +281,19 @@ impl Trainer {
     ) {
         let t = Instant::now();
         let weights = self.generator.weights();
+        // The passes that paint the crops are kept for the backward when they fit in memory;
+        // otherwise the fused evaluator paints, and the backward runs them again.
+        let keep = self.keeps_passes(&weights);
+        let fused = (!keep).then(|| FusedGenerator::new(weights.clone()));
+        let paint = |samples: &[FakeSample]| match &fused {
+            None => self.paint_kept(&weights, samples),
+            Some(fused) => {
+                let (planar, shape) = self.paint_fused(fused, samples);
+                (planar, shape, Vec::new())
+            }
+        };
         let samples = self.fake_samples(counters, 0);
-        let fused = FusedGenerator::new(weights.clone());
-        let (fake, shape) = self.paint_fused(&fused, &samples);
+        let (fake, shape, mut passes) = paint(&samples);
         let (scores, dx) = critic.scores_and_input_gradient(&fake, shape); // dx: [b · n, cg]
         let b = scores.len();
         stats.generator_loss = -scores.iter().sum::<f32>() / b as f32;
@@ -297,7 +308,8 @@ impl Trainer {
         let mut twins = Vec::new();
         if self.config.diversity > 0.0 {
             twins = self.fake_samples(counters, 1);
-            let (twin, _) = self.paint_fused(&fused, &twins);
+            let (twin, _, twin_passes) = paint(&twins);
+            passes.extend(twin_passes);
             let (target, weight) = (self.diversity_target(), self.config.diversity as f32);
             let h = diversity::hinge(&fake, &twin, [b, cg, n], c, target, weight);
             d_output.iter_mut().zip(&h.d_a).for_each(|(d, h)| *d += h);
@@ -308,27 +320,18 @@ impl Trainer {
         let t = Instant::now();
         let dims = self.kind.generator_axes();
         let scale = vec![self.config.latent_scale; dims];
-        let groups: Vec<backward::Group> = samples
-            .iter()
-            .chain(&twins)
-            .enumerate()
-            .flat_map(|(i, sample)| {
-                let d_output = &d_output;
-                (0..n).step_by(backward::GROUP_POINTS).map(move |start| {
-                    let end = (start + backward::GROUP_POINTS).min(n);
-                    backward::Group {
-                        p: &sample.p[start * dims..end * dims],
-                        field: &sample.field,
-                        guide: match sample.condition.is_empty() {
-                            true => &[][..],
-                            false => &sample.condition[start..end],
-                        },
-                        d_output: &d_output[(i * n + start) * c..(i * n + end) * c],
-                    }
-                })
+        let all: Vec<&FakeSample> = samples.iter().chain(&twins).collect();
+        let groups: Vec<backward::Group> = self
+            .point_groups(all.len())
+            .into_iter()
+            .map(|(i, start, end)| backward::Group {
+                p: &all[i].p[start * dims..end * dims],
+                field: &all[i].field,
+                guide: all[i].condition.get(start..end).unwrap_or(&[]),
+                d_output: &d_output[(i * n + start) * c..(i * n + end) * c],
             })
             .collect();
-        let grads = backward::gradients(&weights, &scale, &groups);
+        let grads = backward::gradients(&weights, &scale, &groups, keep.then_some(&passes[..]));
         let grads = self.generator_gradients(&grads);
         stats.times.generator_backward += t.elapsed().as_secs_f64();
         let t = Instant::now();
