@@ -3,7 +3,8 @@
 //! bare `gemm` calls of the same shapes on all cores, and nothing else (no im2col, activations,
 //! encoding or Adam). With the diversity hinge, each generator step's twins add a generator
 //! forward and backward. The shapes are the fused step's ([`crate::critic::fused`],
-//! [`crate::generator::backward`]), less the generator's forward that its backward runs again.
+//! [`crate::generator::backward`]), less the generator's forward that its backward runs again
+//! when the step cannot keep its passes (`paper.toml`'s batch, volumes).
 
 use crate::generator::fused::matmul_parallel;
 use crate::train::{RunKind, TrainConfig};

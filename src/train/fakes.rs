@@ -1,7 +1,8 @@
 //! The generated side of the critic's input: for each sample, a crop's grid of coordinates
 //! moved by a random shift, a fresh latent field, and the condition of a random real crop;
 //! painted by the framework's generator (with gradient), or on the CPU by synthesis' own fused
-//! engine ([`crate::synth::paint_fused`]) when no gradient is needed.
+//! engine ([`crate::synth::paint_fused`]) when no gradient is needed, or by the generator's
+//! backward's own forward passes, kept for its backward (`Trainer::paint_kept`).
 
 use burn::prelude::*;
 use rayon::prelude::*;
