@@ -60,3 +60,11 @@ pub fn crop_coordinate(crop: usize, i: usize, shift: f32) -> f32 {
     let step = 2.0 / crop as f32;
     -1.0 + (i as f32 + 0.5) * step + shift
 }
+
+/// Point `i` of a training crop painted every `stride`-th pixel (the coarse critic's): pixel
+/// `i · stride` of a crop of `crop · stride` pixels, which spans `2 · stride` units, moved by
+/// the sample's random `shift`. With `stride` 1 this is [`crop_coordinate`].
+pub fn strided_crop_coordinate(crop: usize, stride: usize, i: usize, shift: f32) -> f32 {
+    let step = 2.0 / crop as f32;
+    -(stride as f32) + ((i * stride) as f32 + 0.5) * step + shift
+}

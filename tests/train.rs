@@ -11,7 +11,7 @@ use burn::prelude::*;
 use common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::device::DeviceChoice;
-use ipfn::train::{TrainConfig, Trainer};
+use ipfn::train::{Scale, TrainConfig, Trainer};
 
 #[test]
 fn resume_continues_bit_exactly() {
@@ -394,12 +394,18 @@ fn fused_and_burn_fake_crops_agree() {
     .unwrap();
     let fused = ipfn::generator::fused::FusedGenerator::new(trainer.generator().weights());
     let a = trainer
-        .fake_batch_fused(&fused, &[1, 2, 3])
+        .fake_batch_fused(&fused, &[1, 2, 3], Scale::Fine)
         .inner()
         .try_into_vec_as::<f32>()
         .unwrap();
     let b = trainer
-        .fake_batch(&trainer.generator().valid(), &device, &[1, 2, 3], 0)
+        .fake_batch(
+            &trainer.generator().valid(),
+            &device,
+            &[1, 2, 3],
+            0,
+            Scale::Fine,
+        )
         .try_into_vec_as::<f32>()
         .unwrap();
     assert_eq!(a.len(), 3 * 3 * 16 * 16);
@@ -412,7 +418,72 @@ fn fused_and_burn_fake_crops_agree() {
 /// start, a few iterations of each end at the same weights, up to float rounding.
 #[test]
 fn fused_steps_follow_the_framework() {
-    fused_steps_follow_the_framework_with(0.0);
+    fused_steps_follow_the_framework_with(0.0, 0);
+}
+
+/// The same with the coarse critic: its steps and its share of the generator's gradient (the
+/// coarse crops through the generator's backward) are autodiff's, and it changes the update.
+#[test]
+fn fused_coarse_critic_follows_the_framework() {
+    let with = fused_steps_follow_the_framework_with(0.0, 2);
+    let without = fused_steps_follow_the_framework_with(0.0, 0);
+    let moved = common::max_abs_diff(&with.layers[0].weight, &without.layers[0].weight);
+    assert!(moved > 1e-4, "the coarse critic changed nothing ({moved})");
+}
+
+/// The coarse critic's real crops are the exemplar read every `coarse_stride`-th pixel, the
+/// fine critic's every pixel, and the two critics draw other crops.
+#[test]
+fn coarse_real_crops_are_strided_reads_of_the_exemplar() {
+    let dir = common::tiny_run_folder();
+    let exemplar = ipfn::exemplar::read_exemplar(&dir.path().join("ex.png")).unwrap();
+    let config = TrainConfig {
+        coarse_stride: 3,
+        ..tiny_network(4)
+    };
+    let run = dir.path().join("run");
+    let trainer = Trainer::new(config, dir.path().join("ex.png"), &run, &Device::flex()).unwrap();
+    let (s, c, w) = (16, exemplar.channels, exemplar.width);
+    // Whether sample `i` of `batch` ([b, c, 1, s, s]) is the exemplar read every `stride`-th
+    // pixel from some origin.
+    let read_at = |batch: &[f32], i: usize, stride: usize| {
+        let span = (s - 1) * stride + 1;
+        let origins =
+            (0..=exemplar.height - span).flat_map(|y| (0..=w - span).map(move |x| (y, x)));
+        origins.into_iter().any(|(y, x)| {
+            (0..s * s).all(|q| {
+                let (r, col) = (y + q / s * stride, x + q % s * stride);
+                (0..c).all(|ch| {
+                    batch[(i * c + ch) * s * s + q] == exemplar.values[(r * w + col) * c + ch]
+                })
+            })
+        })
+    };
+    let host = |t: Tensor<5>| t.try_into_vec_as::<f32>().unwrap();
+    let coarse = host(trainer.real_batch(&[0, 1], Scale::Coarse));
+    let fine = host(trainer.real_batch(&[0, 1], Scale::Fine));
+    for i in 0..4 {
+        assert!(
+            read_at(&coarse, i, 3),
+            "coarse crop {i} is not a stride-3 read"
+        );
+        assert!(read_at(&fine, i, 1), "fine crop {i} is not a plain crop");
+    }
+    // The stripes exemplar varies along its columns: a strided read is no plain crop.
+    assert!((0..4).any(|i| !read_at(&coarse, i, 1)));
+}
+
+/// A run with the coarse critic resumes bit for bit, its critic and optimiser saved.
+#[test]
+fn resume_with_the_coarse_critic_continues_bit_exactly() {
+    let d = resume_is_bit_exact(&["--coarse-stride", "2"]);
+    let state = Checkpoint::load(&d.path().join("runs/two/latest.ipfn")).unwrap();
+    for prefix in ["coarse_critic.", "adam.coarse_critic.m."] {
+        assert!(
+            state.tensors.keys().any(|k| k.starts_with(prefix)),
+            "{prefix} saved"
+        );
+    }
 }
 
 /// The same with the diversity hinge: its gradient by hand (crops and twins through the
@@ -420,18 +491,22 @@ fn fused_steps_follow_the_framework() {
 /// from a run without it.
 #[test]
 fn fused_diversity_follows_the_framework() {
-    let with = fused_steps_follow_the_framework_with(5.0);
-    let without = fused_steps_follow_the_framework_with(0.0);
+    let with = fused_steps_follow_the_framework_with(5.0, 0);
+    let without = fused_steps_follow_the_framework_with(0.0, 0);
     let moved = common::max_abs_diff(&with.layers[0].weight, &without.layers[0].weight);
     assert!(moved > 1e-4, "the hinge changed nothing ({moved})");
 }
 
 /// Three iterations fused and through the framework; returns the fused generator.
-fn fused_steps_follow_the_framework_with(diversity: f64) -> ipfn::generator::GeneratorWeights {
+fn fused_steps_follow_the_framework_with(
+    diversity: f64,
+    coarse_stride: usize,
+) -> ipfn::generator::GeneratorWeights {
     let dir = common::tiny_run_folder();
     let config = TrainConfig {
         lr: 1e-3,
         diversity,
+        coarse_stride,
         ..tiny_network(3)
     };
     let device = Device::flex();
@@ -487,16 +562,24 @@ fn fused_steps_follow_the_framework_with(diversity: f64) -> ipfn::generator::Gen
         let diff = common::max_abs_diff(&x.weight, &y.weight);
         assert!(diff < 1e-4, "generator layer {l} differs by {diff}");
     }
-    let critic = |t: &Trainer| {
+    let values = |critic: &ipfn::critic::Critic| {
         let mut c = Checkpoint::new();
-        ipfn::checkpoint::write_module(&t.critic().valid(), "c", &mut c);
+        ipfn::checkpoint::write_module(&critic.valid(), "c", &mut c);
         c.tensors
             .into_values()
             .flat_map(|t| t.values)
             .collect::<Vec<f32>>()
     };
-    let diff = common::max_abs_diff(&critic(&fused), &critic(&framework));
+    let diff = common::max_abs_diff(&values(fused.critic()), &values(framework.critic()));
     assert!(diff < 1e-4, "critics differ by {diff}");
+    match (fused.coarse_critic(), framework.coarse_critic()) {
+        (Some(x), Some(y)) => {
+            let diff = common::max_abs_diff(&values(x), &values(y));
+            assert!(diff < 1e-4, "coarse critics differ by {diff}");
+        }
+        (None, None) => assert_eq!(coarse_stride, 0),
+        _ => panic!("one of the two runs lacks the coarse critic"),
+    }
     a
 }
 

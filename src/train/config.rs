@@ -43,6 +43,11 @@ pub struct TrainConfig {
     /// paper) leaves diversity to the critic.
     #[serde(skip_serializing_if = "is_zero")]
     pub diversity: f64,
+    /// The coarse critic ([`super::coarse`]): a second critic judges crops painted at every
+    /// `coarse_stride`-th pixel of a crop this many times wider, so it sees the pattern's
+    /// arrangement over several periods; 0 (the paper) trains the fine critic alone.
+    #[serde(skip_serializing_if = "is_zero_usize")]
+    pub coarse_stride: usize,
     pub beta1: f64,
     pub beta2: f64,
     /// Weight of the gradient penalty.
@@ -112,6 +117,10 @@ pub struct TrainConfig {
     pub average: f64,
 }
 
+fn is_zero_usize(v: &usize) -> bool {
+    *v == 0
+}
+
 fn is_one(v: &usize) -> bool {
     *v == 1
 }
@@ -144,6 +153,7 @@ impl Default for TrainConfig {
             lr_decay: 0.0,
             k_lr: 1.0,
             diversity: 0.0,
+            coarse_stride: 0,
             beta1: 0.5,
             beta2: 0.9,
             gp_lambda: 10.0,
@@ -309,6 +319,7 @@ impl TrainConfig {
             ("crop", self.crop, MAX_CROP),
             ("critic_steps", self.critic_steps, 1000),
             ("generator_steps", self.generator_steps, 1000),
+            ("coarse_stride", self.coarse_stride, MAX_COARSE_STRIDE),
         ];
         for (name, value, max) in limits {
             if value > max {
@@ -416,6 +427,12 @@ impl TrainConfig {
 
     fn validate_for(&self, kind: &RunKind, exemplar: &Exemplar, path: &Path) -> Result<()> {
         if let RunKind::Volume { .. } = kind {
+            if self.coarse_stride > 0 {
+                return Err(input_error!(
+                    "{}: coarse_stride is for images and solid textures; a volume trains with its one critic (coarse_stride = 0)",
+                    path.display()
+                ));
+            }
             if self.resize != 1.0 {
                 return Err(input_error!(
                     "{}: a volume exemplar takes neither --solid, --guide nor --resize",
@@ -444,6 +461,18 @@ impl TrainConfig {
                 (smallest / 16 * 16).max(16)
             ));
         }
+        let span = (self.crop - 1) * self.coarse_stride.max(1) + 1;
+        if smallest < span {
+            return Err(input_error!(
+                "{}: the exemplar is {}x{}, smaller than a coarse crop of {} points every {} pixels ({span} pixels); use a smaller --coarse-stride (at most {})",
+                path.display(),
+                exemplar.width,
+                exemplar.height,
+                self.crop,
+                self.coarse_stride,
+                super::coarse::largest_stride(smallest, self.crop)
+            ));
+        }
         Ok(())
     }
 }
@@ -456,6 +485,7 @@ const MAX_TIME_SECONDS: f64 = 365.0 * 24.0 * 3600.0;
 pub const MAX_ITERATIONS: u64 = 1_000_000_000;
 pub const MAX_BATCH: usize = 4096;
 pub const MAX_CROP: usize = 2048;
+pub const MAX_COARSE_STRIDE: usize = 64;
 /// The most values in one batch of crops (`batch x crop^axes`): 2^26, 256 MiB of floats per
 /// channel before the critic's activations.
 pub const MAX_BATCH_VALUES: usize = 1 << 26;

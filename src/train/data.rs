@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 
 use burn::prelude::*;
 
-use super::step::{stream, uniform};
+use super::coarse::Scale;
+use super::step::uniform;
 use super::{RunKind, TrainConfig, Trainer};
 use crate::error::Result;
 use crate::exemplar::{Exemplar, read_exemplar, read_sdf_volume};
@@ -121,15 +122,23 @@ impl ExemplarSource {
 
 impl Trainer {
     /// The first pixel (or voxel) of a random crop of the exemplar for sample `s`, drawn from
-    /// stream `purpose`, in array order over the crop's axes.
-    pub(super) fn crop_origin(&self, purpose: u64, s: usize, counters: &[u64]) -> Vec<usize> {
+    /// stream `purpose`, in array order over the crop's axes; a crop read every `stride`-th
+    /// pixel ([`Scale::Coarse`]) spans `(crop - 1) · stride + 1` pixels.
+    pub(super) fn crop_origin(
+        &self,
+        purpose: u64,
+        s: usize,
+        counters: &[u64],
+        stride: usize,
+    ) -> Vec<usize> {
         let shape = self.exemplar.shape(self.kind.crop_axes());
         let extra = shape.len() - 2;
+        let span = (self.config.crop - 1) * stride + 1;
         (0..shape.len())
             .map(|axis| {
                 // Rows and columns draw as an image's crop does (0, 1); a volume's depth draws 2.
                 let draw = if axis < extra { 2 + axis } else { axis - extra };
-                let range = shape[axis] - self.config.crop + 1;
+                let range = shape[axis] - span + 1;
                 let mut k = vec![purpose, s as u64, draw as u64];
                 k.extend_from_slice(counters);
                 ((uniform(self.config.seed, &k) * range as f32) as usize).min(range - 1)
@@ -137,12 +146,19 @@ impl Trainer {
             .collect()
     }
 
-    /// The rows of the crop at `origin` (each `crop` pixels of every channel, interleaved as
-    /// the exemplar stores them), in row-major order over the crop's leading axes.
-    pub(super) fn crop_rows(&self, origin: &[usize]) -> impl Iterator<Item = &[f32]> + '_ {
+    /// The rows of the crop at `origin` read every `stride`-th pixel, in row-major order over
+    /// the crop's leading axes: each the stretch of the exemplar (every channel, interleaved as
+    /// it stores them) from the row's first pixel to its last, so `stride` 1 gives `crop`
+    /// pixels and a coarse row is read with `chunks_exact(channels).step_by(stride)`.
+    pub(super) fn crop_rows(
+        &self,
+        origin: &[usize],
+        stride: usize,
+    ) -> impl Iterator<Item = &[f32]> + '_ {
         let (s, ex, c) = (self.config.crop, &self.exemplar, self.exemplar.channels);
         let shape = ex.shape(origin.len());
         let leading = s.pow(origin.len() as u32 - 1);
+        let span = (s - 1) * stride + 1;
         let origin = origin.to_vec();
         (0..leading).map(move |r| {
             // The row's index along each leading axis, last leading axis fastest.
@@ -154,10 +170,10 @@ impl Trainer {
                 rest /= s;
             }
             for a in 0..origin.len() - 1 {
-                flat = flat * shape[a] + origin[a] + index[a];
+                flat = flat * shape[a] + origin[a] + index[a] * stride;
             }
             let from = (flat * shape[origin.len() - 1] + origin[origin.len() - 1]) * c;
-            &ex.values[from..from + s * c]
+            &ex.values[from..from + span * c]
         })
     }
 
@@ -166,7 +182,7 @@ impl Trainer {
     pub(super) fn crop_density(&self, origin: &[usize]) -> f32 {
         let points = self.config.crop.pow(origin.len() as u32);
         let total: f64 = self
-            .crop_rows(origin)
+            .crop_rows(origin, 1)
             .map(|row| row.iter().map(|v| v.abs() as f64).sum::<f64>())
             .sum();
         crate::condition::density_input((total / points as f64) as f32)
@@ -188,9 +204,10 @@ impl Trainer {
         self.exemplar.channels + self.kind.conditioned() as usize
     }
 
-    /// The condition slice `[points]` of the crop at `origin`: guidance over the exemplar, or
-    /// the crop's density at every point; empty for an unconditioned run.
-    pub(super) fn crop_condition(&self, origin: &[usize]) -> Vec<f32> {
+    /// The condition slice `[points]` of the crop at `origin` read every `stride`-th pixel:
+    /// guidance over the exemplar, or the crop's density at every point; empty for an
+    /// unconditioned run.
+    pub(super) fn crop_condition(&self, origin: &[usize], stride: usize) -> Vec<f32> {
         let (crop, ex) = (self.config.crop, &self.exemplar);
         match &self.kind {
             RunKind::Volume { density: true } => {
@@ -198,7 +215,8 @@ impl Trainer {
             }
             RunKind::Image { guide: Some(g) } => (0..crop * crop)
                 .map(|q| {
-                    let (row, col) = (origin[0] + q / crop, origin[1] + q % crop);
+                    let row = origin[0] + q / crop * stride;
+                    let col = origin[1] + q % crop * stride;
                     g.at(row as i64, col as i64, ex.width, ex.height)
                 })
                 .collect(),
@@ -206,25 +224,26 @@ impl Trainer {
         }
     }
 
-    /// Random real crops for the counters' step: the exemplar's channels, then the condition.
+    /// Random real crops for the counters' step at `scale` (a coarse crop is read every
+    /// `coarse_stride`-th pixel): the exemplar's channels, then the condition.
     ///
     /// # Shapes
     /// - output: `[batch, channels (+ 1), depth, crop, crop]` (depth 1 for 2D crops)
-    pub fn real_batch(&self, counters: &[u64]) -> Tensor<5> {
+    pub fn real_batch(&self, counters: &[u64], scale: Scale) -> Tensor<5> {
         let (b, s, c) = (self.config.batch, self.config.crop, self.exemplar.channels);
         let cg = c + self.kind.conditioned() as usize;
-        let n = self.crop_points();
+        let (n, stride) = (self.crop_points(), self.stride(scale));
         let mut data = vec![0f32; b * cg * n];
         for (i, sample) in data.chunks_mut(cg * n).enumerate() {
-            let origin = self.crop_origin(stream::REAL_CROP, i, counters);
-            for (r, row) in self.crop_rows(&origin).enumerate() {
-                for (x, px) in row.chunks_exact(c).enumerate() {
+            let origin = self.crop_origin(scale.real_crop_stream(), i, counters, stride);
+            for (r, row) in self.crop_rows(&origin, stride).enumerate() {
+                for (x, px) in row.chunks_exact(c).step_by(stride).enumerate() {
                     for (ch, v) in px.iter().enumerate() {
                         sample[ch * n + r * s + x] = *v;
                     }
                 }
             }
-            let condition = self.crop_condition(&origin);
+            let condition = self.crop_condition(&origin, stride);
             sample[c * n..].copy_from_slice(&condition);
         }
         let depth = if self.kind.crop_axes() == 3 { s } else { 1 };

@@ -35,8 +35,8 @@ impl Trainer {
 
     fn measure_diversity_target(&self) -> f32 {
         let crop = |pair: usize, side: u64| -> Vec<f32> {
-            let origin = self.crop_origin(stream::DIVERSITY, pair, &[side]);
-            self.crop_rows(&origin)
+            let origin = self.crop_origin(stream::DIVERSITY, pair, &[side], 1);
+            self.crop_rows(&origin, 1)
                 .flat_map(|row| row.iter().copied())
                 .collect::<Vec<f32>>()
         };

@@ -7,13 +7,14 @@
 use burn::prelude::*;
 use rayon::prelude::*;
 
+use super::coarse::Scale;
 use super::step::{stream, uniform};
 use super::{RunKind, Trainer};
 use crate::generator::backward::{self, Pass};
 use crate::generator::fused::{CHUNK_POINTS, FusedGenerator};
 use crate::generator::{Generator, GeneratorWeights};
 use crate::latent::{DeviceLattice, LatentField, derive_seed};
-use crate::sample::crop_coordinate;
+use crate::sample::{crop_coordinate, strided_crop_coordinate};
 
 /// The most memory a generator step's kept forward passes may take
 /// ([`Trainer::keeps_passes`]).
@@ -27,8 +28,8 @@ impl Trainer {
     /// for the crop the critic scores, 1 for its twin (the same coordinates, a fresh field; see
     /// [`super::diversity`]).
     ///
-    /// A crop's grid of pixel centres spans 2 units and is shifted by a random offset per
-    /// axis. For a solid texture it lies in a random axis-aligned plane of the volume: the
+    /// A crop's grid of pixel centres spans 2 units (a coarse crop's `2 · coarse_stride`,
+    /// every `coarse_stride`-th pixel) and is shifted by a random offset per axis. For a solid texture it lies in a random axis-aligned plane of the volume: the
     /// plane's axis sits at its random offset, and the crop's rows and columns run along the
     /// other two axes in order. For a volume it is a cube of `crop³` voxels.
     pub(super) fn sample_coordinates(
@@ -36,6 +37,7 @@ impl Trainer {
         s: usize,
         counters: &[u64],
         draw: u64,
+        scale: Scale,
     ) -> (Vec<f32>, LatentField) {
         let cfg = &self.config;
         let dims = self.kind.generator_axes();
@@ -53,8 +55,11 @@ impl Trainer {
             cfg.latent_dim,
         )
         .with_sigma(cfg.sigma);
-        let crop = cfg.crop;
-        let along = |i: usize, axis: usize| crop_coordinate(crop, i, shift[axis]);
+        let (crop, stride) = (cfg.crop, self.stride(scale));
+        let along = |i: usize, axis: usize| match stride {
+            1 => crop_coordinate(crop, i, shift[axis]),
+            _ => strided_crop_coordinate(crop, stride, i, shift[axis]),
+        };
         // The axes the crop's points run along: all of them, or a solid's random plane.
         let (fixed, running): (Option<usize>, Vec<usize>) = match self.kind {
             RunKind::Solid => {
@@ -81,7 +86,7 @@ impl Trainer {
 
     /// Generated crops: the generator at every point of every sample, then the condition
     /// the generator was given, as one more channel. `draw` picks the latent fields (0: the
-    /// critic's crops; 1: their twins).
+    /// critic's crops; 1: their twins), `scale` the fine or the coarse critic's grid.
     ///
     /// # Shapes
     /// - output: `[batch, channels (+ 1), depth, crop, crop]` on `device` (`generator`'s)
@@ -91,10 +96,11 @@ impl Trainer {
         device: &Device,
         counters: &[u64],
         draw: u64,
+        scale: Scale,
     ) -> Tensor<5> {
         let (b, s, c) = (self.config.batch, self.config.crop, self.exemplar.channels);
         let depth = if self.kind.crop_axes() == 3 { s } else { 1 };
-        let (values, conditions) = self.fake_values(generator, device, counters, draw);
+        let (values, conditions) = self.fake_values(generator, device, counters, draw, scale);
         let crops = values.reshape([b, depth, s, s, c]).permute([0, 4, 1, 2, 3]); // [b, c, depth, s, s]
         if conditions.is_empty() {
             return crops;
@@ -114,6 +120,7 @@ impl Trainer {
         device: &Device,
         counters: &[u64],
         draw: u64,
+        scale: Scale,
     ) -> (Tensor<2>, Vec<f32>) {
         let cfg = &self.config;
         let (b, ld) = (cfg.batch, cfg.latent_dim);
@@ -121,7 +128,7 @@ impl Trainer {
         let zw = ld + conditioned; // generator input after the encoding: latent, then g
         let (n, dims) = (self.crop_points(), self.kind.generator_axes());
         if device.clone().inner() != Device::flex() {
-            return self.fake_values_on_device(generator, device, counters, draw);
+            return self.fake_values_on_device(generator, device, counters, draw, scale);
         }
         let mut coords = vec![0f32; b * n * dims];
         let mut latent = vec![0f32; b * n * zw];
@@ -131,14 +138,14 @@ impl Trainer {
             .zip(latent.par_chunks_mut(n * zw))
             .enumerate()
             .for_each(|(s, (p, z))| {
-                let (sample, field) = self.sample_coordinates(s, counters, draw);
+                let (sample, field) = self.sample_coordinates(s, counters, draw, scale);
                 p.copy_from_slice(&sample);
                 let u: Vec<f32> = p.iter().map(|v| v * cfg.latent_scale).collect();
                 if conditioned == 0 {
                     field.fill(&u, z);
                     return;
                 }
-                let g = self.fake_condition(s, counters);
+                let g = self.fake_condition(s, counters, scale);
                 let mut zs = vec![0f32; n * ld];
                 field.fill(&u, &mut zs);
                 for q in 0..n {
@@ -148,7 +155,7 @@ impl Trainer {
             });
         if conditioned == 1 {
             for (s, out) in conditions.chunks_mut(n).enumerate() {
-                out.copy_from_slice(&self.fake_condition(s, counters));
+                out.copy_from_slice(&self.fake_condition(s, counters, scale));
             }
         }
         let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, dims]), device);
@@ -165,14 +172,15 @@ impl Trainer {
         (Tensor::cat(values, 0), conditions) // [b * n, c]
     }
 
-    /// The condition slice of generated sample `s`: that of a random real crop (stream
-    /// `GUIDE`); empty for an unconditioned run.
-    pub(super) fn fake_condition(&self, s: usize, counters: &[u64]) -> Vec<f32> {
+    /// The condition slice of generated sample `s`: that of a random real crop at `scale`
+    /// (stream `GUIDE`); empty for an unconditioned run.
+    pub(super) fn fake_condition(&self, s: usize, counters: &[u64], scale: Scale) -> Vec<f32> {
         if !self.kind.conditioned() {
             return Vec::new();
         }
-        let origin = self.crop_origin(stream::GUIDE, s, counters);
-        self.crop_condition(&origin)
+        let stride = self.stride(scale);
+        let origin = self.crop_origin(stream::GUIDE, s, counters, stride);
+        self.crop_condition(&origin, stride)
     }
 
     /// [`Trainer::fake_values`] on a GPU: the same crops and fields, with the latent blend
@@ -188,6 +196,7 @@ impl Trainer {
         device: &Device,
         counters: &[u64],
         draw: u64,
+        scale: Scale,
     ) -> (Tensor<2>, Vec<f32>) {
         let cfg = &self.config;
         let b = cfg.batch;
@@ -196,7 +205,7 @@ impl Trainer {
         let mut conditions = Vec::new();
         let mut plans = Vec::with_capacity(b);
         for s in 0..b {
-            let (p, field) = self.sample_coordinates(s, counters, draw);
+            let (p, field) = self.sample_coordinates(s, counters, draw, scale);
             // The box of lattice cells this crop touches (u = p * latent_scale, as on the device).
             let (mut lo, mut hi) = (vec![f32::INFINITY; dims], vec![f32::NEG_INFINITY; dims]);
             for q in p.chunks_exact(dims) {
@@ -207,7 +216,7 @@ impl Trainer {
                 }
             }
             coords.extend_from_slice(&p);
-            conditions.extend(self.fake_condition(s, counters));
+            conditions.extend(self.fake_condition(s, counters, scale));
             plans.push((field, lo, hi));
         }
         let fields: Vec<(&LatentField, Vec<f32>, Vec<f32>)> = plans
@@ -233,23 +242,33 @@ impl Trainer {
     ///
     /// # Shapes
     /// - output: `[batch, channels (+ 1), depth, crop, crop]` on the training device
-    pub fn fake_batch_fused(&self, generator: &FusedGenerator, counters: &[u64]) -> Tensor<5> {
-        let samples = self.fake_samples(counters, 0);
+    pub fn fake_batch_fused(
+        &self,
+        generator: &FusedGenerator,
+        counters: &[u64],
+        scale: Scale,
+    ) -> Tensor<5> {
+        let samples = self.fake_samples(counters, 0, scale);
         let (planar, shape) = self.paint_fused(generator, &samples);
         Tensor::from_data(TensorData::new(planar, shape), &self.device)
     }
 
     /// Each generated sample's coordinates `[points, axes]`, latent field and condition (empty
     /// for an unconditioned run), as [`Trainer::fake_batch`] draws them.
-    pub(super) fn fake_samples(&self, counters: &[u64], draw: u64) -> Vec<FakeSample> {
+    pub(super) fn fake_samples(
+        &self,
+        counters: &[u64],
+        draw: u64,
+        scale: Scale,
+    ) -> Vec<FakeSample> {
         (0..self.config.batch)
             .into_par_iter()
             .map(|i| {
-                let (p, field) = self.sample_coordinates(i, counters, draw);
+                let (p, field) = self.sample_coordinates(i, counters, draw, scale);
                 FakeSample {
                     p,
                     field,
-                    condition: self.fake_condition(i, counters),
+                    condition: self.fake_condition(i, counters, scale),
                 }
             })
             .collect()
@@ -292,7 +311,9 @@ impl Trainer {
     /// [`KEPT_PASSES_BYTES`] (`configs/quick.toml`'s 14 MB, `default.toml`'s 343 MB; not
     /// `paper.toml`'s batch of 8 or a volume's), or as [`Trainer::keep_passes_within`] says.
     pub(super) fn keeps_passes(&self, weights: &GeneratorWeights) -> bool {
-        let crops = self.config.batch * (1 + (self.config.diversity > 0.0) as usize);
+        let twins = (self.config.diversity > 0.0) as usize;
+        let coarse = self.coarse.is_some() as usize;
+        let crops = self.config.batch * (1 + twins + coarse);
         let floats = crops * self.crop_points() * backward::pass_floats_per_point(weights);
         floats * size_of::<f32>() <= self.kept_passes_bytes
     }

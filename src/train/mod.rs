@@ -6,6 +6,7 @@
 //! - [`data`]: the exemplar and its random crops (over 2 or 3 axes), the critic's real input;
 //! - [`fakes`]: generated crops, the critic's fake input;
 //! - [`diversity`]: a hinge that keeps generated crops as varied as the exemplar's;
+//! - [`coarse`]: a second critic on strided crops several periods wide, for the arrangement;
 //! - [`step`]: one iteration, random streams and initialisation; on the CPU the critic's and
 //!   the generator's steps are fused ([`crate::critic::fused`], [`crate::generator::backward`]),
 //!   elsewhere they go through burn's autodiff;
@@ -16,6 +17,7 @@
 
 pub mod adam;
 pub mod average;
+pub mod coarse;
 pub mod config;
 pub mod data;
 pub mod diversity;
@@ -31,6 +33,7 @@ use std::path::{Path, PathBuf};
 
 use burn::prelude::*;
 
+pub use coarse::Scale;
 pub use config::{DEFAULT_SDF_SCALE, RunKind, TrainConfig};
 pub use data::{ExemplarSource, load_exemplar};
 pub use fakes::FLEX_TRAIN_CHUNK;
@@ -64,6 +67,8 @@ pub struct Trainer {
     /// scores, saves and paints.
     average: Option<GeneratorWeights>,
     critic: Critic,
+    /// The coarse critic (`coarse_stride` set; [`coarse`]).
+    coarse: Option<coarse::CoarseCritic>,
     adam_generator: Adam,
     adam_critic: Adam,
     /// Iterations completed.
@@ -116,8 +121,17 @@ impl Trainer {
             stream::INIT_CRITIC,
         );
         let average = (config.average > 0.0).then(|| generator.weights());
+        let coarse = (config.coarse_stride > 0).then(|| coarse::CoarseCritic {
+            critic: initialise(
+                config.critic_config(&kind, channels).init(&device),
+                config.seed,
+                stream::INIT_COARSE_CRITIC,
+            ),
+            adam: Adam::new(config.lr, config.beta1, config.beta2),
+        });
         Ok(Self {
             average,
+            coarse,
             adam_generator: Adam::new(config.lr, config.beta1, config.beta2),
             adam_critic: Adam::new(config.lr, config.beta1, config.beta2),
             config,
@@ -280,6 +294,18 @@ impl Trainer {
         adam_generator.read_from("adam.generator", &ckpt, &device)?;
         let mut adam_critic = Adam::new(config.lr, config.beta1, config.beta2);
         adam_critic.read_from("adam.critic", &ckpt, &device)?;
+        let coarse = if config.coarse_stride > 0 {
+            let critic = checkpoint::read_module(
+                config.critic_config(&kind, exemplar.channels).init(&device),
+                run::COARSE_CRITIC_PREFIX,
+                &ckpt,
+            )?;
+            let mut adam = Adam::new(config.lr, config.beta1, config.beta2);
+            adam.read_from(run::COARSE_ADAM_PREFIX, &ckpt, &device)?;
+            Some(coarse::CoarseCritic { critic, adam })
+        } else {
+            None
+        };
         let iteration = ckpt
             .meta(ITERATION_KEY)?
             .parse()
@@ -296,6 +322,7 @@ impl Trainer {
             average,
             device,
             critic,
+            coarse,
             adam_generator,
             adam_critic,
             iteration,

@@ -89,6 +89,10 @@ overrides! {
     /// field must differ as much as two crops of the exemplar do; 0: the paper's loss. Default:
     /// 1 for an image with no clear period (the settings printed before training say so), else 0.
     diversity: f64, fixed;
+    /// A coarse critic that judges crops painted at every N-th pixel of a crop N times wider,
+    /// so it sees several of the pattern's periods; 0: the fine critic alone. Default: from the
+    /// exemplar's period (the settings printed before training say so).
+    coarse_stride: usize, fixed;
     /// Seed of every random draw.
     seed: u64, fixed;
     /// Scale the exemplar first (Lanczos-3, anti-aliased), e.g. 0.5.

@@ -22,6 +22,9 @@ pub(super) const ITERATION_KEY: &str = "iteration";
 pub(super) const EXEMPLAR_KEY: &str = "exemplar";
 pub(super) const FINGERPRINT_KEY: &str = "exemplar_fingerprint";
 const CRITIC_CONFIG_KEY: &str = "critic_config";
+/// Where the coarse critic and its optimiser's moments are stored (`coarse_stride` set).
+pub(super) const COARSE_CRITIC_PREFIX: &str = "coarse_critic";
+pub(super) const COARSE_ADAM_PREFIX: &str = "adam.coarse_critic";
 /// The best score so far and its iteration (`"SIFID ITERATION"`), so a resumed run keeps it.
 const BEST_KEY: &str = "best_sifid";
 
@@ -280,17 +283,23 @@ impl Trainer {
         checkpoint::write_module(&self.critic, "critic", &mut state);
         self.adam_generator.write_to("adam.generator", &mut state);
         self.adam_critic.write_to("adam.critic", &mut state);
+        if let Some(coarse) = &self.coarse {
+            checkpoint::write_module(&coarse.critic, COARSE_CRITIC_PREFIX, &mut state);
+            coarse.adam.write_to(COARSE_ADAM_PREFIX, &mut state);
+        }
         keep_previous(&self.run_dir)?;
         state.save(&self.run_dir.join(RunState::Latest.file_name()))?;
         Ok(path)
     }
 
-    /// Writes `previews/iter-NNNNNN.png`: a fixed-seed sample covering 4x the crop's area. A
-    /// solid texture or a volume previews its depth-0 slice (a density-controlled volume at the
-    /// exemplar's mean density); a map set its first map.
+    /// Writes `previews/iter-NNNNNN.png`: a fixed-seed sample covering 4x the area of the
+    /// widest crop a critic judges. A solid texture or a volume previews its depth-0 slice (a
+    /// density-controlled volume at the exemplar's mean density); a map set its first map.
     pub fn save_preview(&self) -> Result<PathBuf> {
         let (config, weights) = self.model();
-        let side = 2 * config.crop; // 4x the crop's area, in the model's pixels
+        // 4x the area of the widest crop a critic judges (the coarse critic's, where the run
+        // has one), in the model's pixels, so the preview shows what the critics see.
+        let side = 2 * config.crop * self.stride(super::coarse::Scale::Coarse);
         let crop = self.config.crop as i64;
         let mut synth =
             Synth::new(config, weights).seed(derive_seed(self.config.seed, &[stream::PREVIEW]));

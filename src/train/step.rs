@@ -9,6 +9,8 @@ use burn::module::{Module, ModuleMapper, Param};
 use burn::optim::GradientsParams;
 use burn::prelude::*;
 
+use super::adam::Adam;
+use super::coarse::Scale;
 use super::fakes::FakeSample;
 use super::{Trainer, diversity};
 use crate::critic::fused::FusedCritic;
@@ -18,6 +20,8 @@ use crate::latent::{derive_seed, mix64};
 
 /// Purposes of random draws, so no two share a stream.
 pub(crate) mod stream {
+    // The coarse critic's (see `coarse`) draw from streams of their own, so a run without it
+    // draws exactly as before.
     pub const INIT_GENERATOR: u64 = 1;
     pub const INIT_CRITIC: u64 = 2;
     pub const REAL_CROP: u64 = 3;
@@ -30,6 +34,19 @@ pub(crate) mod stream {
     pub const GUIDE: u64 = 10;
     pub const SLICE_AXIS: u64 = 11;
     pub const DIVERSITY: u64 = 12;
+    pub const COARSE_REAL_CROP: u64 = 13;
+    pub const COARSE_CRITIC_FAKE: u64 = 14;
+    pub const COARSE_GENERATOR_FAKE: u64 = 15;
+    pub const COARSE_ALPHA: u64 = 16;
+    pub const INIT_COARSE_CRITIC: u64 = 17;
+}
+
+/// Which critic step of which iteration, and its penalty's weight (`None`: no penalty).
+#[derive(Debug, Clone, Copy)]
+struct CriticStepInput {
+    it: u64,
+    step: u64,
+    lambda: Option<f64>,
 }
 
 /// Uniform in [0, 1) from a seed and counters.
@@ -152,6 +169,19 @@ pub struct StepTimes {
     pub generator_update: f64,
 }
 
+impl StepTimes {
+    /// Adds `other`'s seconds to these.
+    fn add(&mut self, other: &StepTimes) {
+        self.critic_data += other.critic_data;
+        self.critic_forward += other.critic_forward;
+        self.critic_backward += other.critic_backward;
+        self.critic_update += other.critic_update;
+        self.generator_forward += other.generator_forward;
+        self.generator_backward += other.generator_backward;
+        self.generator_update += other.generator_update;
+    }
+}
+
 impl Trainer {
     /// Runs one iteration: critic steps, then generator steps.
     pub fn step(&mut self) -> IterationStats {
@@ -164,6 +194,9 @@ impl Trainer {
         };
         let lr = super::adam::scheduled_lr(cfg.lr, cfg.lr_decay, it, cfg.iterations);
         self.adam_critic.lr = lr;
+        if let Some(coarse) = &mut self.coarse {
+            coarse.adam.lr = lr;
+        }
         self.adam_generator.lr = lr;
         self.adam_generator.k_lr = cfg.k_lr;
         // The generator is fixed during the critic's steps: on the CPU its fakes come from the
@@ -171,54 +204,41 @@ impl Trainer {
         let fused = self
             .fused_steps()
             .then(|| FusedGenerator::new(self.generator.weights()));
-        // On the CPU the critic's weights stay on the host through its steps (Adam updates
-        // them in place), and go back into the framework's critic once, after them.
-        let mut host_critic = fused
-            .is_some()
-            .then(|| FusedCritic::new(&self.critic, self.critic_channels(), self.crop_shape()));
+        // On the CPU the critics' weights stay on the host through their steps (Adam updates
+        // them in place), and go back into the framework's critics once, after them.
+        let mut host_critics: Option<Vec<FusedCritic>> = fused.is_some().then(|| {
+            let (channels, shape) = (self.critic_channels(), self.crop_shape());
+            let critics = self.scales().iter().map(|&scale| self.critic_at(scale));
+            critics
+                .map(|critic| FusedCritic::new(critic, channels, shape))
+                .collect()
+        });
         for step in 0..cfg.critic_steps as u64 {
-            let t = Instant::now();
-            let real = self.real_batch(&[it, step]);
-            let counters = [stream::CRITIC_FAKE, it, step];
-            let fake = match &fused {
-                Some(g) => self.fake_batch_fused(g, &counters),
-                None => Tensor::from_inner(self.fake_batch(
-                    &self.generator.valid(),
-                    &self.device.clone().inner(),
-                    &counters,
-                    0,
-                )),
-            };
-            let alphas: Vec<f32> = (0..cfg.batch as u64)
-                .map(|s| uniform(cfg.seed, &[stream::ALPHA, s, it, step]))
-                .collect();
-            stats.times.critic_data += t.elapsed().as_secs_f64();
-
             // Lazy regularisation: the penalty on every `penalty_every`-th critic step.
             let counted = it * cfg.critic_steps as u64 + step;
             let lambda = counted
                 .is_multiple_of(cfg.penalty_every as u64)
                 .then_some(cfg.gp_lambda * cfg.penalty_every as f64);
-            if let Some(critic) = &mut host_critic {
-                self.critic_step_fused(critic, real, fake, &alphas, lambda, &mut stats);
-            } else {
-                let alpha =
-                    Tensor::<1>::from_data(TensorData::new(alphas, [cfg.batch]), &self.device);
-                self.critic_step_framework(real, fake, alpha, lambda, &mut stats);
+            for (i, &scale) in self.scales().iter().enumerate() {
+                let host = host_critics.as_mut().map(|c| &mut c[i]);
+                let step = CriticStepInput { it, step, lambda };
+                self.critic_step(scale, step, fused.as_ref(), host, &mut stats);
             }
         }
-        if let Some(critic) = &host_critic {
+        if let Some(critics) = &host_critics {
             let t = Instant::now();
-            self.critic = critic.write_into(self.critic.clone());
+            for (&scale, host) in self.scales().iter().zip(critics) {
+                let critic = host.write_into(self.critic_at(scale).clone());
+                *self.critic_and_adam(scale).0 = critic;
+            }
             stats.times.critic_update += t.elapsed().as_secs_f64();
         }
-        // The critic is fixed during the generator's steps.
-        let frozen = host_critic;
+        // The critics are fixed during the generator's steps.
+        let frozen = host_critics;
         for step in 0..cfg.generator_steps as u64 {
-            let counters = [stream::GENERATOR_FAKE, it, step];
             match &frozen {
-                Some(critic) => self.generator_step_fused(critic, &counters, &mut stats),
-                None => self.generator_step_framework(&counters, &mut stats),
+                Some(critics) => self.generator_step_fused(critics, [it, step], &mut stats),
+                None => self.generator_step_framework([it, step], &mut stats),
             }
         }
         self.iteration += 1;
@@ -236,28 +256,84 @@ impl Trainer {
         stats
     }
 
-    /// One generator update through the framework: fakes with gradient, the frozen critic's
-    /// scores, autodiff, Adam.
-    fn generator_step_framework(&mut self, counters: &[u64], stats: &mut IterationStats) {
+    /// The critic at `scale`.
+    fn critic_at(&self, scale: Scale) -> &crate::critic::Critic {
+        match (scale, &self.coarse) {
+            (Scale::Coarse, Some(coarse)) => &coarse.critic,
+            _ => &self.critic,
+        }
+    }
+
+    /// The critic at `scale` and its optimiser.
+    fn critic_and_adam(&mut self, scale: Scale) -> (&mut crate::critic::Critic, &mut Adam) {
+        match (scale, &mut self.coarse) {
+            (Scale::Coarse, Some(coarse)) => (&mut coarse.critic, &mut coarse.adam),
+            _ => (&mut self.critic, &mut self.adam_critic),
+        }
+    }
+
+    /// One update of the critic at `scale`: its real and generated crops, then the fused step
+    /// (`host`, on the CPU) or the framework's. The fine critic's losses go into `stats`.
+    fn critic_step(
+        &mut self,
+        scale: Scale,
+        input: CriticStepInput,
+        fused: Option<&FusedGenerator>,
+        host: Option<&mut FusedCritic>,
+        stats: &mut IterationStats,
+    ) {
+        let CriticStepInput { it, step, lambda } = input;
         let t = Instant::now();
-        let frozen = self.critic.clone().no_grad();
-        let fake = self.fake_batch(&self.generator, &self.device, counters, 0);
-        let mut loss = frozen.forward(fake.clone()).mean().neg();
+        let batch = self.config.batch;
+        let real = self.real_batch(&[it, step], scale);
+        let counters = [scale.critic_fake_stream(), it, step];
+        let fake = match fused {
+            Some(g) => self.fake_batch_fused(g, &counters, scale),
+            None => Tensor::from_inner(self.fake_batch(
+                &self.generator.valid(),
+                &self.device.clone().inner(),
+                &counters,
+                0,
+                scale,
+            )),
+        };
+        let alphas: Vec<f32> = (0..batch as u64)
+            .map(|s| uniform(self.config.seed, &[scale.alpha_stream(), s, it, step]))
+            .collect();
+        stats.times.critic_data += t.elapsed().as_secs_f64();
+        let mut losses = IterationStats::default();
+        if let Some(critic) = host {
+            self.critic_step_fused(scale, critic, real, fake, &alphas, lambda, &mut losses);
+        } else {
+            let alpha = Tensor::<1>::from_data(TensorData::new(alphas, [batch]), &self.device);
+            self.critic_step_framework(scale, real, fake, alpha, lambda, &mut losses);
+        }
+        stats.times.add(&losses.times);
+        if scale == Scale::Fine {
+            stats.wasserstein = losses.wasserstein;
+            if lambda.is_some() {
+                stats.penalty = losses.penalty;
+            }
+        }
+    }
+
+    /// One generator update through the framework: fakes with gradient, the frozen critics'
+    /// scores, autodiff, Adam.
+    fn generator_step_framework(&mut self, [it, step]: [u64; 2], stats: &mut IterationStats) {
+        let t = Instant::now();
+        // The critics' share (the loss reported), then the diversity hinge's.
+        let (mut loss, mut hinge) = (Tensor::<1>::zeros([1], &self.device), None);
+        for &scale in self.scales() {
+            let counters = [scale.generator_fake_stream(), it, step];
+            let frozen = self.critic_at(scale).clone().no_grad();
+            let fake = self.fake_batch(&self.generator, &self.device, &counters, 0, scale);
+            loss = loss + frozen.forward(fake.clone()).mean().neg();
+            if scale == Scale::Fine && self.config.diversity > 0.0 {
+                hinge = Some(self.diversity_framework(fake, &counters));
+            }
+        }
         stats.generator_loss = loss.clone().into_scalar::<f32>();
-        if self.config.diversity > 0.0 {
-            // The diversity hinge (see `diversity`) through autodiff: crops and their twins.
-            let twin = self.fake_batch(&self.generator, &self.device, counters, 1);
-            let [b, _, d, h, w] = fake.dims();
-            let c = self.exemplar.channels;
-            let diff = fake.narrow(1, 0, c) - twin.narrow(1, 0, c); // [b, c, d, h, w]
-            let squared = (diff.clone() * diff).reshape([b, c * d * h * w]).sum_dim(1); // [b, 1]
-            let distance = squared.add_scalar(1e-24).sqrt();
-            let hinge = distance
-                .neg()
-                .add_scalar(self.diversity_target())
-                .clamp_min(0.0)
-                .mean()
-                .mul_scalar(self.config.diversity);
+        if let Some(hinge) = hinge {
             loss = loss + hinge;
         }
         stats.times.generator_forward += t.elapsed().as_secs_f64();
@@ -269,14 +345,30 @@ impl Trainer {
         stats.times.generator_update += t.elapsed().as_secs_f64();
     }
 
-    /// One generator update on the CPU: fakes from the fused evaluator, the critic's scores and
-    /// input gradient from the fused critic, the generator's gradient by hand
+    /// The diversity hinge (see `diversity`) through autodiff: the crops `fake` and their twins.
+    fn diversity_framework(&self, fake: Tensor<5>, counters: &[u64]) -> Tensor<1> {
+        let twin = self.fake_batch(&self.generator, &self.device, counters, 1, Scale::Fine);
+        let [b, _, d, h, w] = fake.dims();
+        let c = self.exemplar.channels;
+        let diff = fake.narrow(1, 0, c) - twin.narrow(1, 0, c); // [b, c, d, h, w]
+        let squared = (diff.clone() * diff).reshape([b, c * d * h * w]).sum_dim(1); // [b, 1]
+        let distance = squared.add_scalar(1e-24).sqrt();
+        distance
+            .neg()
+            .add_scalar(self.diversity_target())
+            .clamp_min(0.0)
+            .mean()
+            .mul_scalar(self.config.diversity)
+    }
+
+    /// One generator update on the CPU: fakes from the fused evaluator, the critics' scores and
+    /// input gradients from the fused critics, the generator's gradient by hand
     /// ([`crate::generator::backward`]), then Adam: the same update as
     /// [`Trainer::generator_step_framework`].
     fn generator_step_fused(
         &mut self,
-        critic: &FusedCritic,
-        counters: &[u64],
+        critics: &[FusedCritic],
+        [it, step]: [u64; 2],
         stats: &mut IterationStats,
     ) {
         let t = Instant::now();
@@ -292,35 +384,45 @@ impl Trainer {
                 (planar, shape, Vec::new())
             }
         };
-        let samples = self.fake_samples(counters, 0);
-        let (fake, shape, mut passes) = paint(&samples);
-        let (scores, dx) = critic.scores_and_input_gradient(&fake, shape); // dx: [b · n, cg]
-        let b = scores.len();
-        stats.generator_loss = -scores.iter().sum::<f32>() / b as f32;
-        let (c, cg) = (self.exemplar.channels, shape[1]);
+        let c = self.exemplar.channels;
         let n = self.crop_points();
-        // d loss / d output = -dD/dx / b, without the condition's channel: [b · n, c]
-        let mut d_output: Vec<f32> = dx
-            .chunks_exact(cg)
-            .flat_map(|px| px[..c].iter().map(|v| -v / b as f32))
-            .collect();
-        // The diversity hinge: the crops' twins, and the hinge's gradient on both.
-        let mut twins = Vec::new();
-        if self.config.diversity > 0.0 {
-            twins = self.fake_samples(counters, 1);
-            let (twin, _, twin_passes) = paint(&twins);
-            passes.extend(twin_passes);
-            let (target, weight) = (self.diversity_target(), self.config.diversity as f32);
-            let h = diversity::hinge(&fake, &twin, [b, cg, n], c, target, weight);
-            d_output.iter_mut().zip(&h.d_a).for_each(|(d, h)| *d += h);
-            d_output.extend(h.d_b); // the twins' rows follow the crops'
+        // Every painted sample (the fine crops, their twins, the coarse crops, in that order),
+        // the loss's gradient on each one's output `[points, c]`, and the kept passes.
+        let (mut all, mut d_output, mut passes) = (Vec::new(), Vec::new(), Vec::new());
+        let mut loss = 0.0;
+        for (&scale, critic) in self.scales().iter().zip(critics) {
+            let counters = [scale.generator_fake_stream(), it, step];
+            let samples = self.fake_samples(&counters, 0, scale);
+            let (fake, shape, kept) = paint(&samples);
+            passes.extend(kept);
+            let (scores, dx) = critic.scores_and_input_gradient(&fake, shape); // dx: [b · n, cg]
+            let (b, cg) = (scores.len(), shape[1]);
+            loss += -scores.iter().sum::<f32>() / b as f32;
+            // d loss / d output = -dD/dx / b, without the condition's channel: [b · n, c]
+            let mut d: Vec<f32> = dx
+                .chunks_exact(cg)
+                .flat_map(|px| px[..c].iter().map(|v| -v / b as f32))
+                .collect();
+            all.extend(samples);
+            // The diversity hinge: the fine crops' twins, and the hinge's gradient on both.
+            if scale == Scale::Fine && self.config.diversity > 0.0 {
+                let twins = self.fake_samples(&counters, 1, scale);
+                let (twin, _, twin_passes) = paint(&twins);
+                passes.extend(twin_passes);
+                let (target, weight) = (self.diversity_target(), self.config.diversity as f32);
+                let h = diversity::hinge(&fake, &twin, [b, cg, n], c, target, weight);
+                d.iter_mut().zip(&h.d_a).for_each(|(d, h)| *d += h);
+                d.extend(h.d_b); // the twins' rows follow the crops'
+                all.extend(twins);
+            }
+            d_output.extend(d);
         }
+        stats.generator_loss = loss;
         stats.times.generator_forward += t.elapsed().as_secs_f64();
 
         let t = Instant::now();
         let dims = self.kind.generator_axes();
         let scale = vec![self.config.latent_scale; dims];
-        let all: Vec<&FakeSample> = samples.iter().chain(&twins).collect();
         let groups: Vec<backward::Group> = self
             .point_groups(all.len())
             .into_iter()
@@ -360,6 +462,7 @@ impl Trainer {
     /// One critic update through the framework: scores, the exact penalty, autodiff, Adam.
     fn critic_step_framework(
         &mut self,
+        scale: Scale,
         real: Tensor<5>,
         fake: Tensor<5>,
         alpha: Tensor<1>,
@@ -367,14 +470,13 @@ impl Trainer {
         stats: &mut IterationStats,
     ) {
         let t = Instant::now();
-        let weights = self.critic.weights(); // shared by the scores and the penalty
-        let d_real = self.critic.score(&weights, real.clone()).mean();
-        let d_fake = self.critic.score(&weights, fake.clone()).mean();
+        let (critic, adam) = self.critic_and_adam(scale);
+        let weights = critic.weights(); // shared by the scores and the penalty
+        let d_real = critic.score(&weights, real.clone()).mean();
+        let d_fake = critic.score(&weights, fake.clone()).mean();
         let mut loss = d_fake.clone() - d_real.clone();
         if let Some(lambda) = lambda {
-            let penalty = self
-                .critic
-                .gradient_penalty(&weights, real, fake, alpha, lambda);
+            let penalty = critic.gradient_penalty(&weights, real, fake, alpha, lambda);
             loss = loss + penalty.clone();
             stats.penalty = penalty.into_scalar::<f32>();
         }
@@ -382,18 +484,20 @@ impl Trainer {
         stats.times.critic_forward += t.elapsed().as_secs_f64();
 
         let t = Instant::now();
-        let grads = GradientsParams::from_grads(loss.backward(), &self.critic);
+        let grads = GradientsParams::from_grads(loss.backward(), &*critic);
         stats.times.critic_backward += t.elapsed().as_secs_f64();
         let t = Instant::now();
-        self.critic = self.adam_critic.step(self.critic.clone(), grads);
+        *critic = adam.step(critic.clone(), grads);
         stats.times.critic_update += t.elapsed().as_secs_f64();
     }
 
     /// One critic update on the CPU with the fused step ([`FusedCritic`]): the same loss and
     /// gradients as [`Trainer::critic_step_framework`], then Adam on the host weights. Its time
     /// counts as the critic's backward, apart from reading the crops (forward).
+    #[allow(clippy::too_many_arguments)]
     fn critic_step_fused(
         &mut self,
+        scale: Scale,
         critic: &mut FusedCritic,
         real: Tensor<5>,
         fake: Tensor<5>,
@@ -415,7 +519,7 @@ impl Trainer {
         }
         stats.times.critic_backward += t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let adam = &mut self.adam_critic;
+        let adam = self.critic_and_adam(scale).1;
         adam.begin_step();
         critic.apply(&step, |path, values, grad| {
             adam.update_host(path, values, grad)
