@@ -1,4 +1,5 @@
-//! Evaluation: SIFID, the seam score of tiles, and the dominant period of a pattern.
+//! Evaluation: SIFID, the structure distance, the seam score of tiles, and the dominant period
+//! of a pattern.
 //!
 //! **SIFID** (Shaham et al., SinGAN, 2019) is the Fréchet distance between the Gaussians fitted
 //! to the deep features of two images, where every spatial position of the feature map is one
@@ -11,6 +12,10 @@
 //! values are **not comparable** with papers that used torchvision's weights (SinGAN, IPFN's
 //! Table 1). We call the metric "SIFID (Keras InceptionV3)" wherever we print it.
 //!
+//! The **structure distance** ([`Autocorrelation`]) compares how the pattern is arranged, which
+//! SIFID does not see: the mean absolute difference of two normalised autocorrelations of the
+//! luminance, beside the exemplar's own **floor** (its halves against the whole).
+//!
 //! The **seam score** of a tile is the mean gradient magnitude across its wrap seams (last
 //! column to first, last row to first) over the mean gradient magnitude of the lines beside the
 //! seams, inside the tile: about 1 for a seamless tile, larger where the wrap shows.
@@ -22,9 +27,11 @@
 //! a visible grid.
 
 mod sifid;
+mod structure;
 mod tiles;
 
 pub use sifid::*;
+pub use structure::*;
 pub use tiles::*;
 
 use crate::error::Result;
