@@ -153,23 +153,28 @@ fn main() {
         train_s / base.iterations as f64,
         rayon::current_num_threads()
     );
-    println!("| model | SIFID mean ± std | / ours | tile seam score | period rows x cols (px) |");
-    println!("|---|---|---|---|---|");
+    println!(
+        "| model | SIFID mean ± std | / ours | structure mean ± std | tile seam score | period rows x cols (px) |"
+    );
+    println!("|---|---|---|---|---|---|");
     for (name, r) in &rows {
         println!(
-            "| {name} | {:.3} ± {:.3} | {:.2} | {:.3} | {:.1} x {:.1} |",
+            "| {name} | {:.3} ± {:.3} | {:.2} | {:.4} ± {:.4} | {:.3} | {:.1} x {:.1} |",
             r.sifid.mean,
             r.sifid.std,
             r.sifid.mean / ours.sifid.mean,
+            r.structure.mean,
+            r.structure.std,
             r.seam_model_tile.overall,
             r.period_model[0],
             r.period_model[1]
         );
     }
     println!(
-        "\nexemplar period (autocorrelation): {:?} x {:?}; metric: {}",
+        "\nexemplar period (autocorrelation): {:?} x {:?}; structure floor (its halves): {:.4}; metric: {}",
         ours.period_exemplar[0].map(|v| (v * 10.0).round() / 10.0),
         ours.period_exemplar[1].map(|v| (v * 10.0).round() / 10.0),
+        ours.structure_floor,
         metrics::SIFID_NAME
     );
     let record = std::env::var_os("IPFN_SIFID_RECORD").is_some_and(|v| v == "1");

@@ -1,8 +1,9 @@
 //! README section "`ipfn eval`: how good is a model", as library calls.
 //!
 //! `cargo run --release --example 08_eval` scores the shipped honeycomb model against the
-//! shipped honeycomb exemplar: SIFID over 2 samples, the seam score of `--tile` samples laid
-//! 2x2, and the period from K beside the exemplar's autocorrelation peak.
+//! shipped honeycomb exemplar: SIFID and structure distance over 2 samples (beside the
+//! exemplar's structure floor), the seam score of `--tile` samples laid 2x2, and the period
+//! from K beside the exemplar's autocorrelation peak.
 
 use std::path::Path;
 
@@ -16,9 +17,11 @@ fn main() -> ipfn::Result<()> {
     // `ipfn eval --exemplar exemplars/honeycomb.png --samples 2`
     let report = evaluate_model(&config, &weights, &exemplar, 2, 0, DeviceChoice::Cpu)?;
     println!(
-        "SIFID {:.3} ± {:.3}; seam score {:.3} (exemplar laid 2x2: {:.3}); period {:.1} x {:.1} px",
+        "SIFID {:.3} ± {:.3}; structure {:.4} (floor {:.4}); seam score {:.3} (exemplar laid 2x2: {:.3}); period {:.1} x {:.1} px",
         report.sifid.mean,
         report.sifid.std,
+        report.structure.mean,
+        report.structure_floor,
         report.seam_model_tile.overall,
         report.seam_exemplar.overall,
         report.period_model[0],

@@ -17,7 +17,8 @@
 //! - [`io`]: arrays, images and volumes out, written atomically.
 //! - [`maps`]: material map sets (albedo, normal, height, ...) learned and painted together.
 //! - [`mesh`]: zero level sets of volumes as meshes (surface nets), welded across chunks.
-//! - [`metrics`]: SIFID (Keras InceptionV3 stem), seam score of tiles, dominant periods.
+//! - [`metrics`]: SIFID (Keras InceptionV3 stem), structure distance (autocorrelation), seam
+//!   score of tiles, dominant periods.
 //! - [`fit`]: `ipfn fit`, a photo turned into a seamless tile by a periodic sine network.
 //! - [`procedural`]: exemplars drawn by our own code, with known periods.
 //! - [`bench`]: `ipfn bench`, speed beside floors measured in the same run.

@@ -207,6 +207,27 @@ fn eval_images_compares_two_files() {
     assert!(same["sifid"].as_f64().unwrap().abs() < 1e-6, "{same}");
     assert!(other["sifid"].as_f64().unwrap() > 50.0, "{other}");
     assert!(other["metric"].as_str().unwrap().contains("not comparable"));
+    // Structure: an image against itself is exactly 0; bricks against the honeycomb (its lags,
+    // its floor) are far above the honeycomb's own halves (measured: 0.331 against 0.038).
+    assert_eq!(same["structure"].as_f64(), Some(0.0), "{same}");
+    assert_eq!(same["structure_floor"], other["structure_floor"]);
+    assert_eq!(other["structure_lags"], 64, "a quarter of 256");
+    let floor = other["structure_floor"].as_f64().unwrap();
+    let apart = other["structure"].as_f64().unwrap();
+    assert!(
+        floor > 0.0 && apart > 3.0 * floor,
+        "bricks {apart}, floor {floor}"
+    );
+    let text = ipfn(
+        dir.path(),
+        &["eval", "--images", &path(&honey), &path(&bricks)],
+    );
+    assert!(text.status.success(), "{}", stderr(&text));
+    let text = String::from_utf8(text.stdout).unwrap();
+    assert!(
+        text.contains("SIFID ") && text.contains("structure "),
+        "{text}"
+    );
 }
 
 #[test]
@@ -226,6 +247,20 @@ fn eval_scores_the_shipped_model_against_its_exemplar() {
     ));
     let sifid = &report["sifid"];
     assert_eq!(sifid["values"].as_array().unwrap().len(), 4);
+    // The structure distance of the same samples, beside the exemplar's own floor: the
+    // authors' model paints the honeycomb's arrangement, so about as close as the exemplar's
+    // halves are to it (measured: 0.025 against a floor of 0.038; bricks score 0.33).
+    let structure = &report["structure"];
+    assert_eq!(structure["values"].as_array().unwrap().len(), 4);
+    let (distance, floor) = (
+        structure["mean"].as_f64().unwrap(),
+        report["structure_floor"].as_f64().unwrap(),
+    );
+    assert!(floor.is_finite() && floor > 0.0, "floor {floor}");
+    assert!(
+        distance.is_finite() && distance > 0.0 && distance < 1.5 * floor,
+        "structure {distance}, floor {floor}"
+    );
     let mean = sifid["mean"].as_f64().unwrap();
     // The authors' trained model paints honeycomb: far closer to its exemplar than bricks are.
     let bricks = metrics::sifid(

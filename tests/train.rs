@@ -317,9 +317,9 @@ fn it_learns_the_period_of_stripes() {
     let reference = ipfn::exemplar::read_exemplar(&d.join("stripes.png")).unwrap();
     let (gc, trained) = trainer.model();
     let sifid = |w: &ipfn::generator::GeneratorWeights| {
-        ipfn::metrics::sifid_and_repeat(&gc, w, &reference, 4, 0, DeviceChoice::Cpu)
+        ipfn::metrics::sample_scores(&gc, w, &reference, 4, 0, DeviceChoice::Cpu)
             .unwrap()
-            .0
+            .sifid
             .mean
     };
     let (trained, untrained) = (sifid(&trained), sifid(&untrained));

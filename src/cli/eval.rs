@@ -1,5 +1,5 @@
-//! `ipfn eval`: SIFID, seam score and period of a model against its exemplar, or SIFID of two
-//! images.
+//! `ipfn eval`: SIFID, structure distance, seam score and period of a model against its
+//! exemplar, or SIFID and structure distance of two images.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -24,7 +24,8 @@ pub struct EvalArgs {
         conflicts_with = "images"
     )]
     pub exemplar: Option<PathBuf>,
-    /// Compare two images directly: SIFID of A to B.
+    /// Compare two images directly: SIFID of A to B, and B's structure distance to A (A as the
+    /// exemplar: its lags and its floor).
     #[arg(long, num_args = 2, value_names = ["A", "B"])]
     pub images: Option<Vec<PathBuf>>,
     /// Samples to synthesize (seeds --seed, --seed + 1, ...), each at the exemplar's size.
@@ -45,35 +46,7 @@ pub(super) fn eval(args: EvalArgs) -> Result<()> {
     use crate::metrics;
     let start = Instant::now();
     if let Some(images) = &args.images {
-        let gaussian = |p: &Path| -> Result<metrics::Gaussian> {
-            let image = crate::exemplar::read_exemplar(p)?;
-            let in_file = |e: crate::Error| match e {
-                crate::Error::Input(m) => input_error!("{}: {m}", p.display()),
-                other => other,
-            };
-            let rgb = metrics::to_unit_rgb(&image.values, image.channels).map_err(in_file)?;
-            let features = metrics::InceptionStem::embedded()
-                .features(&rgb, image.height, image.width)
-                .map_err(in_file)?;
-            metrics::Gaussian::fit(&features).map_err(in_file)
-        };
-        let score = metrics::frechet_distance(&gaussian(&images[0])?, &gaussian(&images[1])?);
-        if args.json {
-            let out = serde_json::json!({
-                "metric": metrics::SIFID_NAME,
-                "sifid": score,
-                "a": images[0],
-                "b": images[1],
-            });
-            println!("{out}");
-        } else {
-            println!(
-                "SIFID {score:.4}  ({} vs {}; Keras InceptionV3 stem, not comparable with torchvision-based values)",
-                images[0].display(),
-                images[1].display()
-            );
-        }
-        return Ok(());
+        return eval_images(&args, &images[0], &images[1]);
     }
     let exemplar_path = args
         .exemplar
@@ -115,7 +88,59 @@ pub(super) fn eval(args: EvalArgs) -> Result<()> {
     Ok(())
 }
 
-/// The report as text: SIFID, seam score, period and repeat strength, one line each.
+/// `--images A B`: SIFID of the two, and B's structure distance to A with A's lags, beside A's
+/// floor.
+fn eval_images(args: &EvalArgs, a: &Path, b: &Path) -> Result<()> {
+    use crate::metrics;
+    let read = |p: &Path| -> Result<(crate::exemplar::Exemplar, metrics::Gaussian)> {
+        let image = crate::exemplar::read_exemplar(p)?;
+        let in_file = |e: crate::Error| match e {
+            crate::Error::Input(m) => input_error!("{}: {m}", p.display()),
+            other => other,
+        };
+        let rgb = metrics::to_unit_rgb(&image.values, image.channels).map_err(in_file)?;
+        let features = metrics::InceptionStem::embedded()
+            .features(&rgb, image.height, image.width)
+            .map_err(in_file)?;
+        let gaussian = metrics::Gaussian::fit(&features).map_err(in_file)?;
+        Ok((image, gaussian))
+    };
+    let ((ia, ga), (ib, gb)) = (read(a)?, read(b)?);
+    let score = metrics::frechet_distance(&ga, &gb);
+    let lags = metrics::structure_lags(ia.height, ia.width);
+    let map = |i: &crate::exemplar::Exemplar| {
+        metrics::Autocorrelation::of(&i.values, i.height, i.width, i.channels, lags)
+    };
+    let structure = map(&ia).distance(&map(&ib));
+    let floor = metrics::structure_floor(&ia.values, ia.height, ia.width, ia.channels);
+    if args.json {
+        let out = serde_json::json!({
+            "metric": metrics::SIFID_NAME,
+            "sifid": score,
+            "structure": structure,
+            "structure_floor": floor,
+            "structure_lags": lags,
+            "a": a,
+            "b": b,
+        });
+        println!("{out}");
+        return Ok(());
+    }
+    println!(
+        "SIFID {score:.4}  ({} vs {}; Keras InceptionV3 stem, not comparable with torchvision-based values)",
+        a.display(),
+        b.display()
+    );
+    println!(
+        "structure {structure:.4}  ({} against {}, lags up to {lags} px; {}'s own halves: {floor:.4}. Lower is better)",
+        b.display(),
+        a.display(),
+        a.display()
+    );
+    Ok(())
+}
+
+/// The report as text: SIFID, structure, seam score, period and repeat strength, one line each.
 fn print_report(r: &crate::metrics::ModelReport) {
     let fmt_period = |p: Option<f64>| p.map_or("none".to_string(), |v| format!("{v:.1}"));
     println!(
@@ -127,6 +152,13 @@ fn print_report(r: &crate::metrics::ModelReport) {
         r.height,
         r.seed,
         r.seed + r.sifid.values.len() as u64 - 1
+    );
+    println!(
+        "structure      {:.4} ± {:.4} (autocorrelation distance, lags up to {} px); the exemplar's own halves: {:.4}. Lower is better; near the floor, the samples are arranged like the exemplar.",
+        r.structure.mean,
+        r.structure.std,
+        crate::metrics::structure_lags(r.height, r.width),
+        r.structure_floor
     );
     println!(
         "seam score     {:.3} for --tile samples laid 2x2 (columns {:.3}, rows {:.3}); the exemplar laid 2x2: {:.3}. About 1 is seamless.",

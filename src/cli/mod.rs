@@ -31,7 +31,7 @@ pub use view::ViewArgs;
     long_about = "Implicit Periodic Field Network (Chen et al., CVPR 2022).\n\n\
         `ipfn train` learns a pattern from one exemplar (an image, or a set of material maps). \
         `ipfn synth` paints new, varied, optionally seamless versions of it at any size, on the \
-        CPU or a GPU. `ipfn eval` scores a model (SIFID, seams, period); `ipfn bench` times this \
+        CPU or a GPU. `ipfn eval` scores a model (SIFID, structure, seams, period); `ipfn bench` times this \
         machine; `ipfn import` converts a generator trained by the authors' PyTorch code. With no \
         model given, synth uses the most recent model in the working folder, else the shipped \
         honeycomb model."
@@ -58,7 +58,8 @@ pub enum Command {
     /// Turn a photo (or a map set) into an exactly periodic, seamless tile: a periodic
     /// sinusoidal network fitted to it (Paz, Novello and Velho), paintable at any size.
     Fit(Box<FitArgs>),
-    /// Score a model against its exemplar (SIFID, seam score, period), or two images (SIFID).
+    /// Score a model against its exemplar (SIFID, structure, seam score, period), or two images
+    /// (SIFID, structure).
     Eval(EvalArgs),
     /// Time synthesis and training on this machine's devices, beside floors measured now.
     Bench(BenchArgs),

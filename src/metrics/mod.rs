@@ -67,6 +67,11 @@ pub struct ModelReport {
     pub metric: &'static str,
     /// SIFID of samples (seeds `seed..seed + samples`, at the exemplar's size) to the exemplar.
     pub sifid: Summary,
+    /// Structure distance of the same samples to the exemplar (lower is better).
+    pub structure: Summary,
+    /// The exemplar's own structure distance ([`structure_floor`]): what a model that paints
+    /// the exemplar's structure can expect.
+    pub structure_floor: f64,
     /// Seam score of `--tile` samples of the exemplar's size (one per seed), laid 2x2.
     pub seam_model_tile: SeamScore,
     /// Seam score of the exemplar itself laid 2x2, for comparison.
@@ -106,7 +111,7 @@ pub fn evaluate_model(
         exemplar
     };
     let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
-    let (sifid, repeat_model) = sifid_and_repeat(config, weights, exemplar, samples, seed, device)?;
+    let scores = sample_scores(config, weights, exemplar, samples, seed, device)?;
     let exemplar_repeats = repeats(&exemplar.values, h, w, c);
     // One --tile sample per seed, each cut at another phase of the pattern (an offset within
     // the tile's period keeps it a tile), so the seam score does not measure one phase.
@@ -125,12 +130,14 @@ pub fn evaluate_model(
     let period = |axis: usize| (weights.k[axis].abs() * config.crop as f32) as f64;
     Ok(ModelReport {
         metric: SIFID_NAME,
-        sifid,
+        sifid: scores.sifid,
+        structure: scores.structure,
+        structure_floor: structure_floor(&exemplar.values, h, w, c),
         seam_model_tile: seam_score_of_tiles(&tiles, h, w, c)?,
         seam_exemplar: seam_score(&exemplar.values, h, w, c)?,
         period_model: [period(0), period(1)],
         period_exemplar: exemplar_repeats.map(|r| r.map(|r| r.period)),
-        repeat_model,
+        repeat_model: scores.repeat,
         repeat_exemplar: exemplar_repeats.map(|r| r.map_or(0.0, |r| r.strength)),
         width: w,
         height: h,
@@ -144,27 +151,47 @@ pub fn repeat_strength(image: &[f32], h: usize, w: usize, c: usize) -> [f64; 2] 
     repeats(image, h, w, c).map(|r| r.map_or(0.0, |r| r.strength))
 }
 
-/// SIFID of `samples` samples (seeds `seed`, `seed + 1`, ...) of the model at the exemplar's
-/// size against the exemplar (values in [-1, 1], `[h, w, c]`), and the samples' mean
-/// [`repeat_strength`] along rows and columns.
-pub fn sifid_and_repeat(
+/// How a model's samples score against its exemplar ([`sample_scores`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SampleScores {
+    /// SIFID of each sample to the exemplar.
+    pub sifid: Summary,
+    /// Structure distance of each sample to the exemplar, with the exemplar's
+    /// [`structure_lags`].
+    pub structure: Summary,
+    /// The samples' mean [`repeat_strength`] along rows and columns.
+    pub repeat: [f64; 2],
+}
+
+/// Scores `samples` samples (seeds `seed`, `seed + 1`, ...) of the model at the exemplar's
+/// size against the exemplar (values in [-1, 1], `[h, w, c]`): SIFID, structure distance and
+/// repeat strength.
+pub fn sample_scores(
     config: &crate::generator::GeneratorConfig,
     weights: &crate::generator::GeneratorWeights,
     exemplar: &crate::exemplar::Exemplar,
     samples: usize,
     seed: u64,
     device: crate::device::DeviceChoice,
-) -> Result<(Summary, [f64; 2])> {
+) -> Result<SampleScores> {
     let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
     let real = exemplar_features(config, exemplar)?;
-    let (mut sifids, mut repeat) = (Vec::with_capacity(samples), [0.0; 2]);
+    let lags = structure_lags(h, w);
+    let real_structure = Autocorrelation::of(&exemplar.values, h, w, c, lags);
+    let (mut sifids, mut structures) = (Vec::with_capacity(samples), Vec::with_capacity(samples));
+    let mut repeat = [0.0; 2];
     for_each_sample(config, weights, exemplar, samples, seed, device, |sample| {
         sifids.push(sifid_against(&real, sample, exemplar)?);
+        structures.push(real_structure.distance(&Autocorrelation::of(sample, h, w, c, lags)));
         let s = repeat_strength(sample, h, w, c);
         (0..2).for_each(|axis| repeat[axis] += s[axis] / samples as f64);
         Ok(())
     })?;
-    Ok((Summary::of(sifids), repeat))
+    Ok(SampleScores {
+        sifid: Summary::of(sifids),
+        structure: Summary::of(structures),
+        repeat,
+    })
 }
 
 /// Paints `samples` samples (seeds `seed`, `seed + 1`, ...) of the model at the exemplar's size

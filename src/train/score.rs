@@ -1,6 +1,7 @@
-//! Quality you can watch: at each checkpoint an image run scores its generator (SIFID of a few
-//! fixed-seed samples at the exemplar's own size against the exemplar), logs the score in
-//! `metrics.csv` and the progress line, and keeps the best-scoring generator as `best.ipfn`.
+//! Quality you can watch: at each checkpoint an image run scores its generator (SIFID and the
+//! structure distance of a few fixed-seed samples at the exemplar's own size against the
+//! exemplar), logs the scores in `metrics.csv` and the progress line, and keeps the
+//! best-scoring generator as `best.ipfn`.
 
 use super::{ExemplarSource, RunKind, Trainer};
 use crate::device::DeviceChoice;
@@ -18,10 +19,20 @@ const SCORE_STREAM: u64 = 12;
 /// A checkpoint's scores.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Score {
-    /// SIFID against the exemplar (lower is better); `best.ipfn` keeps the lowest.
+    /// SIFID against the exemplar (lower is better).
     pub sifid: f64,
+    /// Structure distance to the exemplar (lower is better; see [`crate::metrics::Autocorrelation`]).
+    pub structure: f64,
     /// How strongly the samples repeat (0 to 1); far above the exemplar's, a grid.
     pub repeat: f64,
+}
+
+impl Score {
+    /// What `best.ipfn` keeps the lowest of: SIFID times structure distance, so that both
+    /// must be good and a tenth better on either counts the same, whatever their scales.
+    pub fn combined(&self) -> f64 {
+        self.sifid * self.structure
+    }
 }
 
 impl Trainer {
@@ -42,17 +53,17 @@ impl Trainer {
         Ok(Some(exemplar.centre(SCORE_SIDE)))
     }
 
-    /// SIFID (mean over `score_samples` fixed seeds) of the current generator against the
-    /// exemplar at its own size, and how strongly those samples repeat (the mean of
-    /// [`crate::metrics::repeat_strength`] over rows and columns: a grid the SIFID does not
-    /// see shows there); `None` for runs that are not scored.
+    /// SIFID and structure distance (means over `score_samples` fixed seeds) of the current
+    /// generator against the exemplar at its own size, and how strongly those samples repeat
+    /// (the mean of [`crate::metrics::repeat_strength`] over rows and columns: a grid the SIFID
+    /// does not see shows there); `None` for runs that are not scored.
     pub fn score(&self) -> Result<Option<Score>> {
         let Some(reference) = self.score_reference()? else {
             return Ok(None);
         };
         let (config, weights) = self.model();
         let seed = derive_seed(self.config.seed, &[SCORE_STREAM]);
-        let (sifid, repeat) = crate::metrics::sifid_and_repeat(
+        let scores = crate::metrics::sample_scores(
             &config,
             &weights,
             &reference,
@@ -61,12 +72,22 @@ impl Trainer {
             DeviceChoice::Cpu,
         )?;
         Ok(Some(Score {
-            sifid: sifid.mean,
-            repeat: (repeat[0] + repeat[1]) / 2.0,
+            sifid: scores.sifid.mean,
+            structure: scores.structure.mean,
+            repeat: (scores.repeat[0] + scores.repeat[1]) / 2.0,
         }))
     }
 
-    /// The best score so far and the iteration that reached it.
+    /// The exemplar's structure floor as scoring sees it ([`crate::metrics::structure_floor`]
+    /// of the scored reference): the structure distance a generator that paints the
+    /// exemplar's own structure can expect. `None` for runs that are not scored.
+    pub fn structure_floor(&self) -> Result<Option<f64>> {
+        Ok(self
+            .score_reference()?
+            .map(|r| crate::metrics::structure_floor(&r.values, r.height, r.width, r.channels)))
+    }
+
+    /// The best [`Score::combined`] so far and the iteration that reached it.
     pub fn best(&self) -> Option<(f64, u64)> {
         self.best
     }
