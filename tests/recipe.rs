@@ -69,31 +69,61 @@ fn a_time_budget_plans_the_run_scores_it_and_keeps_the_best() {
     assert_eq!((config.crop, config.resize), (32, 1.0));
     assert_eq!(config.k_init, None);
     assert_eq!(config.k_lr, 10.0, "a plain image takes K's own rate");
-    // Every checkpoint row carries a finite score and repeat strength; others leave them empty.
+    // The exemplar's structure floor is printed once, before training.
+    let floor_line = err
+        .lines()
+        .find(|l| l.starts_with("structure floor "))
+        .unwrap();
+    let floor: f64 = floor_line
+        .split(' ')
+        .nth(2)
+        .unwrap()
+        .trim_end_matches(':')
+        .parse()
+        .unwrap();
+    assert!((0.0..1.0).contains(&floor), "{floor_line}");
+    assert_eq!(err.matches("structure floor").count(), 1, "{err}");
+    // Every checkpoint row carries a finite SIFID, repeat strength and structure distance;
+    // others leave them empty.
     let metrics = std::fs::read_to_string(d.join("runs/b/metrics.csv")).unwrap();
-    assert!(metrics.lines().next().unwrap().ends_with(",sifid,repeat"));
-    let scored: Vec<(f64, f64)> = metrics
+    assert!(
+        metrics
+            .lines()
+            .next()
+            .unwrap()
+            .ends_with(",sifid,repeat,structure")
+    );
+    let scored: Vec<[f64; 3]> = metrics
         .lines()
         .skip(1)
         .filter_map(|l| {
-            let (rest, repeat) = l.rsplit_once(',').unwrap();
-            let sifid = rest.rsplit(',').next().unwrap();
+            let cells: Vec<&str> = l.rsplitn(4, ',').take(3).collect();
+            let (structure, repeat, sifid) = (cells[0], cells[1], cells[2]);
             assert_eq!(sifid.is_empty(), repeat.is_empty(), "{l}");
-            (!sifid.is_empty()).then(|| (sifid.parse().unwrap(), repeat.parse().unwrap()))
+            assert_eq!(sifid.is_empty(), structure.is_empty(), "{l}");
+            (!sifid.is_empty()).then(|| [sifid, repeat, structure].map(|v| v.parse().unwrap()))
         })
         .collect();
     assert!(!scored.is_empty());
-    for &(sifid, repeat) in &scored {
+    for &[sifid, repeat, structure] in &scored {
         assert!(sifid.is_finite() && sifid >= 0.0 && (0.0..=1.0).contains(&repeat));
+        assert!(structure.is_finite() && structure > 0.0, "{structure}");
     }
-    let scores: Vec<f64> = scored.iter().map(|s| s.0).collect();
-    // best.ipfn holds the best-scoring checkpoint's generator, and synth prefers it.
+    // best.ipfn holds the checkpoint's generator with the lowest SIFID x structure, and synth
+    // prefers it.
     let best = Checkpoint::load(&d.join("runs/b/best.ipfn")).unwrap();
     GeneratorWeights::read_from(&best).unwrap();
-    let lowest = scores.iter().cloned().fold(f64::INFINITY, f64::min);
+    let lowest = scored
+        .iter()
+        .map(|[sifid, _, structure]| sifid * structure)
+        .fold(f64::INFINITY, f64::min);
     let latest = Checkpoint::load(&d.join("runs/b/latest.ipfn")).unwrap();
-    let (score, _) = latest.meta("best_sifid").unwrap().split_once(' ').unwrap();
+    let (score, _) = latest.meta("best_score").unwrap().split_once(' ').unwrap();
     assert!((score.parse::<f64>().unwrap() - lowest).abs() <= 1e-9 * lowest.max(1.0));
+    assert!(
+        latest.meta("best_sifid").is_err(),
+        "the old key is no longer written"
+    );
     let synth = ipfn(d, &["synth", "--size", "64", "--out", "s.png"]);
     assert!(synth.status.success(), "{}", stderr(&synth));
     assert!(stderr(&synth).contains("best.ipfn"), "{}", stderr(&synth));
@@ -159,6 +189,11 @@ fn a_gray_photo_stored_as_rgb_trains_and_paints_as_gray() {
         ],
     );
     assert!(eval.status.success(), "{}", stderr(&eval));
+    let report = String::from_utf8(eval.stdout).unwrap();
+    assert!(
+        report.contains("SIFID ") && report.contains("structure "),
+        "{report}"
+    );
 }
 
 #[test]

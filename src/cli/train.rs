@@ -103,6 +103,13 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
         "watch it in a browser: ipfn view {}",
         trainer.run_dir().display()
     ));
+    if !args.quiet
+        && let Some(floor) = trainer.structure_floor()?
+    {
+        say(format!(
+            "structure floor {floor:.3}: the exemplar's halves against the whole; checkpoints scoring near it paint its structure"
+        ));
+    }
 
     crate::stop::install(crate::stop::OnSignal::FinishStep);
     let stop = crate::stop::flag();

@@ -25,8 +25,11 @@ const CRITIC_CONFIG_KEY: &str = "critic_config";
 /// Where the coarse critic and its optimiser's moments are stored (`coarse_stride` set).
 pub(super) const COARSE_CRITIC_PREFIX: &str = "coarse_critic";
 pub(super) const COARSE_ADAM_PREFIX: &str = "adam.coarse_critic";
-/// The best score so far and its iteration (`"SIFID ITERATION"`), so a resumed run keeps it.
-const BEST_KEY: &str = "best_sifid";
+/// The best score so far and its iteration (`"SCORE ITERATION"`, the score
+/// [`super::score::Score::combined`]), so a resumed run keeps it. Runs from before the
+/// structure measure stored SIFID alone under `best_sifid`, which is not comparable: a run
+/// resumed from one starts with no best, and its first checkpoint writes `best.ipfn` again.
+const BEST_KEY: &str = "best_score";
 
 /// Iterations timed before a run with a time budget plans its length. The first is not timed:
 /// it pays for warming up (buffers, caches). Early iterations are still slower than a CPU run's
@@ -155,13 +158,15 @@ impl Trainer {
             let stopped = stop.load(Ordering::SeqCst);
             let checkpoint = it.is_multiple_of(cfg.checkpoint_every) || it == total || stopped;
             let preview = it.is_multiple_of(cfg.preview_every) || it == total;
-            if checkpoint && let Some(score) = self.score()? {
-                (stats.sifid, stats.repeat) = (Some(score.sifid), Some(score.repeat));
+            let score = if checkpoint { self.score()? } else { None };
+            if let Some(s) = score {
+                (stats.sifid, stats.structure) = (Some(s.sifid), Some(s.structure));
+                stats.repeat = Some(s.repeat);
             }
             self.append_metrics(&stats)?;
             on_iteration(self, &stats);
             if checkpoint {
-                self.keep_if_best(stats.sifid)?;
+                self.keep_if_best(score.map(|s| s.combined()))?;
                 self.save_checkpoint()?;
             }
             if preview {
@@ -221,7 +226,8 @@ impl Trainer {
         Ok(())
     }
 
-    /// Writes `best.ipfn` (the generator alone) when `score` beats the best so far.
+    /// Writes `best.ipfn` (the generator alone) when `score` ([`super::score::Score::combined`])
+    /// beats the best so far.
     fn keep_if_best(&mut self, score: Option<f64>) -> Result<()> {
         let Some(score) = score.filter(|s| s.is_finite()) else {
             return Ok(());
@@ -374,9 +380,10 @@ impl Trainer {
         let k: Vec<String> = s.k.iter().map(f32::to_string).collect();
         let sifid = s.sifid.map(|v| v.to_string()).unwrap_or_default();
         let repeat = s.repeat.map(|v| v.to_string()).unwrap_or_default();
+        let structure = s.structure.map(|v| v.to_string()).unwrap_or_default();
         writeln!(
             file,
-            "{},{},{},{},{},{},{sifid},{repeat}",
+            "{},{},{},{},{},{},{sifid},{repeat},{structure}",
             s.iteration,
             s.wasserstein,
             s.penalty,
@@ -394,12 +401,15 @@ pub(super) fn create_dir(dir: &Path) -> Result<&Path> {
     Ok(dir)
 }
 
-/// Header of `metrics.csv` for a run over `dims` axes: one K column per axis.
+/// Header of `metrics.csv` for a run over `dims` axes: one K column per axis. Columns added
+/// later go at the end, so the rows of a run from before them still read (as empty there).
 pub fn metrics_header(dims: usize) -> String {
     let k = if dims == 3 {
         "k_depth,k_rows,k_cols"
     } else {
         "k_rows,k_cols"
     };
-    format!("iteration,wasserstein,penalty,generator_loss,{k},iterations_per_second,sifid,repeat\n")
+    format!(
+        "iteration,wasserstein,penalty,generator_loss,{k},iterations_per_second,sifid,repeat,structure\n"
+    )
 }

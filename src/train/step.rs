@@ -123,6 +123,9 @@ pub struct IterationStats {
     pub iterations_per_second: f32,
     /// The generator's score at a checkpoint (SIFID against the exemplar; lower is better).
     pub sifid: Option<f64>,
+    /// The structure distance of the scored samples at a checkpoint (lower is better; see
+    /// `Trainer::score`).
+    pub structure: Option<f64>,
     /// How strongly the scored samples repeat at a checkpoint (0 to 1; see `Trainer::score`).
     pub repeat: Option<f64>,
     /// Where the iteration's time went.
@@ -130,19 +133,20 @@ pub struct IterationStats {
 }
 
 impl IterationStats {
-    /// The losses and K for a progress line: `W 0.1234  gp 0.0123  G -0.5678  K 1.0000 1.0000`.
+    /// The losses and K for a progress line: `W 0.1234  gp 0.0123  G -0.5678  K 1.0000 1.0000`,
+    /// and at a checkpoint its scores (`  SIFID 12.34  structure 0.123  repeat 0.45`).
     pub fn summary(&self) -> String {
         let k: Vec<String> = self.k.iter().map(|k| format!("{k:.4}")).collect();
-        let sifid = self
-            .sifid
-            .map(|v| format!("  SIFID {v:.2}"))
-            .unwrap_or_default();
-        let sifid = match self.repeat {
-            Some(r) => format!("{sifid}  repeat {r:.2}"),
-            None => sifid,
-        };
+        let scores: String = [
+            self.sifid.map(|v| format!("  SIFID {v:.2}")),
+            self.structure.map(|v| format!("  structure {v:.3}")),
+            self.repeat.map(|v| format!("  repeat {v:.2}")),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
         format!(
-            "W {:.4}  gp {:.4}  G {:.4}  K {}{sifid}",
+            "W {:.4}  gp {:.4}  G {:.4}  K {}{scores}",
             self.wasserstein,
             self.penalty,
             self.generator_loss,
