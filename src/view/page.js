@@ -244,6 +244,7 @@
     ["generator loss", ["generator_loss"]],
     ["K per axis", ["k_depth", "k_rows", "k_cols"]],
     ["SIFID (lower is better)", ["sifid"]],
+    ["structure (lower is better)", ["structure"]],
     ["repeat (near 1: a grid)", ["repeat"]],
   ];
   const COLOURS = ["#0b6eaf", "#c0392b", "#27ae60"];

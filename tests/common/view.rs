@@ -21,12 +21,13 @@ impl Drop for Viewer {
 }
 
 /// The metrics.csv columns a scored image run's page plots.
-pub const PLOTTED: [&str; 6] = [
+pub const PLOTTED: [&str; 7] = [
     "wasserstein",
     "penalty",
     "k_rows",
     "k_cols",
     "sifid",
+    "structure",
     "repeat",
 ];
 
