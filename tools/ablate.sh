@@ -3,7 +3,8 @@
 # once with flags A and once with flags B (both on top of the defaults for this machine), each
 # for the same --time and seed, one after the other on the whole machine; then `ipfn eval` of
 # each run's default model (best.ipfn): SIFID mean ± std over 8 samples at the photo's size
-# (Keras InceptionV3 stem). Prints one markdown table.
+# (Keras InceptionV3 stem), and the same samples' mean structure distance beside the photo's
+# floor. Prints one markdown table; the ratio is of SIFID.
 #
 #   tools/ablate.sh BUDGET SEED "FLAGS A" "FLAGS B" EXEMPLAR...
 #   tools/ablate.sh 5m 0 "--average 0.98" "" ../shared/exemplars/brick.jpg
@@ -22,9 +23,9 @@ mkdir -p "$work"
 length="--time $budget"
 [[ "$budget" =~ ^[0-9]+$ ]] && length="--iterations $budget"
 slug() { local s="${1:-none}"; s="${s//--/}"; s="${s// /_}"; echo "${s//[^A-Za-z0-9_.=-]/}"; }
-sifid() { # run exemplar -> "mean ± std"
+sifid() { # run exemplar -> "mean ± std, structure S (floor F)"
   "$ipfn" eval --model "$1" --exemplar "$2" --samples 8 --json 2>/dev/null |
-    python3 -c 'import json,sys; r=json.load(sys.stdin)["sifid"]; print("%.2f ± %.2f" % (r["mean"], r["std"]))'
+    python3 -c 'import json,sys; j=json.load(sys.stdin); r=j["sifid"]; print("%.2f ± %.2f, structure %.3f (floor %.3f)" % (r["mean"], r["std"], j["structure"]["mean"], j["structure_floor"]))'
 }
 iterations() { tail -n 1 "$1/metrics.csv" | cut -d, -f1; }
 echo "| exemplar | A: ${a:-defaults} ($budget, seed $seed) | B: ${b:-defaults} | A / B |"

@@ -4,7 +4,8 @@
 # exemplar (K from its period, gray for a gray photo; evaluated at best.ipfn, the default
 # model) and once as the preset ran before (K from 1, colour kept; evaluated at latest.ipfn),
 # each for the same --time, then `ipfn eval` (SIFID mean ± std over 8 samples, Keras
-# InceptionV3 stem). Prints one markdown table.
+# InceptionV3 stem, and the same samples' mean structure distance beside the photo's floor).
+# Prints one markdown table; the ratio is of SIFID.
 #
 #   tools/measure-photos.sh BUDGET SEED EXEMPLAR...
 #   tools/measure-photos.sh 5m 0 ../shared/exemplars/brick.jpg ../shared/exemplars/marble.jpg
@@ -22,9 +23,9 @@ quick="$(dirname "$0")/../configs/quick.toml"
 { cat "$quick"; printf 'k_init = [1.0, 1.0]\ngray = false\n'; } > "$work/quick-before.toml"
 # The same preset with the recipe's choices from the exemplar (K, gray).
 grep -v -E '^iterations ' "$quick" > "$work/recipe.toml"
-sifid() { # model exemplar -> "mean ± std"
+sifid() { # model exemplar -> "mean ± std, structure S (floor F)"
   "$ipfn" eval --model "$1" --exemplar "$2" --samples 8 --json 2>/dev/null |
-    python3 -c 'import json,sys; r=json.load(sys.stdin)["sifid"]; print("%.2f ± %.2f" % (r["mean"], r["std"]))'
+    python3 -c 'import json,sys; j=json.load(sys.stdin); r=j["sifid"]; print("%.2f ± %.2f, structure %.3f (floor %.3f)" % (r["mean"], r["std"], j["structure"]["mean"], j["structure_floor"]))'
 }
 echo "| exemplar | recipe ($budget, seed $seed) | quick.toml ($budget, seed $seed) | recipe / quick |"
 echo "|---|---|---|---|"
