@@ -149,7 +149,7 @@ fn volume_runs_resume_bit_exactly() {
     let straight = metrics("one");
     assert_eq!(
         straight.lines().next().unwrap(),
-        "iteration,wasserstein,penalty,generator_loss,k_depth,k_rows,k_cols,iterations_per_second,sifid,repeat"
+        "iteration,wasserstein,penalty,generator_loss,k_depth,k_rows,k_cols,iterations_per_second,sifid,repeat,structure"
     );
     assert_eq!(straight.lines().count(), 5, "header + 4 rows:\n{straight}");
     let without_speed = |m: String| -> Vec<String> {
