@@ -26,6 +26,7 @@
 //! for a stochastic one. A model whose samples repeat far more strongly than its exemplar paints
 //! a visible grid.
 
+mod fft;
 mod sifid;
 mod structure;
 mod tiles;

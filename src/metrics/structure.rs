@@ -12,8 +12,7 @@
 //! [`structure_floor`], the distance of the exemplar's two halves to the whole, is what a
 //! model that paints the exemplar's own structure can expect.
 
-use rustfft::FftPlanner;
-use rustfft::num_complex::Complex;
+use super::fft::{Complex, fft};
 
 /// The normalised autocorrelation of an image's luminance for lags `-lags..=lags` on each
 /// axis: at each lag (`dy`, `dx`), the mean product of the mean-removed luminances of the
@@ -160,57 +159,46 @@ fn centred_luminance(
 /// least `(height + lags) x (width + lags)`, so no lag wraps around.
 fn lag_sums(gray: &[f64], height: usize, width: usize, lags: usize) -> Vec<f64> {
     let (ph, pw) = (fft_len(height + lags), fft_len(width + lags));
-    let mut planner = FftPlanner::<f64>::new();
-    let (row_fft, col_fft) = (planner.plan_fft_forward(pw), planner.plan_fft_forward(ph));
     // Rows, then columns (as rows of the transpose); the padding rows stay zero.
-    let mut rows = vec![Complex::new(0.0, 0.0); ph * pw];
+    let mut rows = vec![Complex::default(); ph * pw];
     for (y, line) in gray.chunks_exact(width).enumerate() {
         let row = &mut rows[y * pw..y * pw + width];
         row.iter_mut().zip(line).for_each(|(r, &g)| r.re = g);
-        row_fft.process(&mut rows[y * pw..(y + 1) * pw]);
+        fft(&mut rows[y * pw..(y + 1) * pw], false);
     }
     let mut cols = transpose(&rows, ph, pw);
-    cols.chunks_exact_mut(ph).for_each(|c| col_fft.process(c));
+    cols.chunks_exact_mut(ph).for_each(|c| fft(c, false));
     // The power spectrum, back through the columns, then only the rows of the lags we keep.
-    cols.iter_mut()
-        .for_each(|v| *v = Complex::new(v.norm_sqr(), 0.0));
-    let inverse_cols = planner.plan_fft_inverse(ph);
-    cols.chunks_exact_mut(ph)
-        .for_each(|c| inverse_cols.process(c));
-    let inverse_row = planner.plan_fft_inverse(pw);
+    cols.iter_mut().for_each(|v| {
+        *v = Complex {
+            re: v.norm_sqr(),
+            im: 0.0,
+        }
+    });
+    cols.chunks_exact_mut(ph).for_each(|c| fft(c, true));
     let wrap = |d: usize, n: usize| (d + n - lags) % n; // lag index -lags..=lags into 0..n
     let scale = (ph * pw) as f64;
     let side = 2 * lags + 1;
     let mut sums = Vec::with_capacity(side * side);
     for dy in 0..side {
         let y = wrap(dy, ph);
-        let mut row: Vec<Complex<f64>> = (0..pw).map(|x| cols[x * ph + y]).collect();
-        inverse_row.process(&mut row);
+        let mut row: Vec<Complex> = (0..pw).map(|x| cols[x * ph + y]).collect();
+        fft(&mut row, true);
         sums.extend((0..side).map(|dx| row[wrap(dx, pw)].re / scale));
     }
     sums
 }
 
 /// `m` (`rows x cols`, row-major) transposed.
-fn transpose(m: &[Complex<f64>], rows: usize, cols: usize) -> Vec<Complex<f64>> {
+fn transpose(m: &[Complex], rows: usize, cols: usize) -> Vec<Complex> {
     (0..rows * cols)
         .map(|i| m[(i % rows) * cols + i / rows])
         .collect()
 }
 
-/// The smallest length of at least `n` whose only prime factors are 2, 3 and 5 (fast FFTs).
+/// The smallest power of two of at least `n` (the FFT's lengths).
 fn fft_len(n: usize) -> usize {
-    let smooth = |mut m: usize| {
-        for p in [2, 3, 5] {
-            while m.is_multiple_of(p) {
-                m /= p;
-            }
-        }
-        m == 1
-    };
-    (n.max(1)..)
-        .find(|&m| smooth(m))
-        .expect("5-smooth numbers are unbounded")
+    n.max(1).next_power_of_two()
 }
 
 #[cfg(test)]
@@ -412,10 +400,10 @@ mod tests {
     }
 
     #[test]
-    fn fft_lengths_are_smooth_and_long_enough() {
+    fn fft_lengths_are_powers_of_two_and_long_enough() {
         assert_eq!(
             (fft_len(1), fft_len(7), fft_len(97), fft_len(320)),
-            (1, 8, 100, 320)
+            (1, 8, 128, 512)
         );
     }
 }

@@ -8,10 +8,10 @@
 //! exemplar is read at the same stride (every `stride`-th pixel, unfiltered, so that real and
 //! generated crops alias alike). A coarse critic of the same architecture judges those; the
 //! generator's loss adds both critics' scores, so the fine critic keeps the detail and the
-//! coarse one the layout.
-//!
-//! The stride comes from the exemplar's period ([`stride_for_period`]): the coarse crop spans
-//! [`CONTEXT_PERIODS`] periods.
+//! coarse one the layout. A stride that makes the coarse crop span two to four of the pattern's
+//! periods is the intent; it is off by default (`coarse_stride = 0`): at equal time it has not
+//! yet beaten a working scale at which the fine crop holds one whole period
+//! ([`super::recipe::cell_scale`]); the book's experiments have the figures.
 
 use super::Trainer;
 use super::adam::Adam;
@@ -67,19 +67,6 @@ pub(super) struct CoarseCritic {
     pub adam: Adam,
 }
 
-/// Periods of the exemplar a coarse crop spans: two would show each cell once beside its
-/// neighbours; three show the lattice's rows and their offsets.
-pub const CONTEXT_PERIODS: f64 = 3.0;
-
-/// The stride whose coarse crop of `crop` points spans [`CONTEXT_PERIODS`] periods of `period`
-/// pixels (at the working scale), at most `limit` (the largest that fits the exemplar); `None`
-/// where the fine crop already holds them.
-pub fn stride_for_period(period: f64, crop: usize, limit: usize) -> Option<usize> {
-    let stride = (CONTEXT_PERIODS * period / crop as f64).round() as usize;
-    let stride = stride.min(limit);
-    (stride >= 2).then_some(stride)
-}
-
 /// The largest stride whose coarse crop of `crop` points fits in `side` pixels.
 pub fn largest_stride(side: usize, crop: usize) -> usize {
     if crop < 2 {
@@ -118,14 +105,12 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_coarse_crop_spans_three_periods_and_fits_the_exemplar() {
-        // 55 px cells, 32-point crops: 3 periods are 165 px, stride 5 (160 px).
-        assert_eq!(stride_for_period(55.0, 32, 100), Some(5));
-        // The exemplar limits it: 427 px hold (32 - 1) · 13 + 1 = 404.
+    fn the_largest_stride_fits_the_exemplar() {
+        // 427 px hold a crop of 32 points every 13 px: (32 - 1) · 13 + 1 = 404.
         assert_eq!(largest_stride(427, 32), 13);
-        assert_eq!(stride_for_period(400.0, 32, 13), Some(13));
-        // A fine crop that already holds the periods needs no coarse critic.
-        assert_eq!(stride_for_period(8.0, 32, 100), None);
+        assert_eq!(largest_stride(404, 32), 13);
+        assert_eq!(largest_stride(403, 32), 12);
+        assert_eq!(largest_stride(20, 32), 1);
     }
 
     #[test]

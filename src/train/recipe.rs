@@ -4,22 +4,19 @@
 //! equal), trains a gray photo as gray, and says what it measured. Every choice is a config
 //! key: keys given in a config file or as flags are kept as given.
 //!
-//! Two choices from the period were built, measured at equal 5-minute budgets on DTD photos
-//! (`tools/measure-photos.sh`, README "Training on photographs") and are not made by default:
-//! - the scale and crop (a 64-pixel crop holding two periods): `brick.jpg` scaled to 0.237 scored
-//!   SIFID 136.9 ± 0.4, against 31.7 ± 0.5 for the preset's 0.5 and 32 pixels;
-//! - the initial K ([`initial_k`], an octave of the encoding on the period): `brick.jpg` scored
-//!   68.5 ± 0.5 against 41.0 ± 1.0 with K from 1. It is printed, and `k_init` sets it.
-//! - K from the exemplar's extent where it has no clear period (so the encoding repeats no
-//!   sooner than the exemplar): `flecked_2.jpg` at 500 iterations scored 35.99 ± 0.22 against
-//!   20.92 ± 0.48 with K from 1, and its samples still repeated (strength 0.90 x 0.70, against
-//!   0.77 x 0.78; the photo's 0.03): the generator repeats on the encoding's finer octaves.
+//! Two choices come from the period:
+//! - a periodic plain image trains at the working scale at which a fine crop holds one whole
+//!   period of its shorter clear period ([`cell_scale`]): a crop smaller than one cell cannot
+//!   learn the cell's shape, and the generator then paints a grid of crop-sized blobs;
+//! - a plain image with no clear period on either axis trains with the diversity hinge
+//!   ([`NO_PERIOD_DIVERSITY`], [`super::diversity`]), which keeps its samples from repeating as
+//!   a grid. A periodic exemplar keeps the paper's loss: its crops and their twins at the same
+//!   phase should be alike, not as different as two random crops.
 //!
-//! One choice from the period is made: a plain image with no clear period on either axis
-//! trains with the diversity hinge ([`NO_PERIOD_DIVERSITY`], [`super::diversity`]), which
-//! keeps its samples from repeating as a grid (README "Training on photographs" has the
-//! ablation). A periodic exemplar keeps the paper's loss: its crops and their twins at the same
-//! phase should be alike, not as different as two random crops.
+//! Built, measured and not made by default (the book's experiments have the figures): a scale
+//! at which the crop holds two of the longer periods, the initial K from the period
+//! ([`initial_k`]; printed, and `k_init` sets it), K from the exemplar's extent where it has no
+//! clear period, and the coarse critic ([`super::coarse`]).
 
 use std::collections::BTreeSet;
 
@@ -98,6 +95,23 @@ pub fn initial_k(measured: &Measured, resize: f64, crop: usize, octaves: usize) 
         .collect()
 }
 
+/// The smallest working scale the recipe takes from the period: below it a photo loses the
+/// detail SIFID and the eye look for.
+pub const MIN_CELL_SCALE: f64 = 0.25;
+
+/// The working scale at which a fine crop of `crop` pixels holds one whole period of the
+/// exemplar's shorter clear period (one cell of a honeycomb, two courses of bricks), in steps
+/// of 0.05 down; `None` where the crop already holds it or there is no clear period. A crop
+/// smaller than one cell cannot learn the cell's shape, and the generator then paints a grid
+/// of crop-sized blobs.
+pub fn cell_scale(measured: &Measured, crop: usize) -> Option<f64> {
+    let period = (0..2)
+        .filter_map(|axis| measured.period(axis))
+        .reduce(f64::min)?;
+    let scale = (crop as f64 / period * 20.0).floor() / 20.0;
+    (scale < 1.0).then_some(scale.max(MIN_CELL_SCALE))
+}
+
 /// The diversity hinge's weight ([`super::diversity`]) for a plain image with no clear period
 /// on either axis.
 pub const NO_PERIOD_DIVERSITY: f64 = 1.0;
@@ -121,6 +135,12 @@ pub fn apply(
         ),
         _ => format!("no period {name}"),
     };
+    let scale = (plain && !explicit.contains("resize") && !explicit.contains("crop"))
+        .then(|| cell_scale(measured, config.crop))
+        .flatten();
+    if let Some(scale) = scale {
+        config.resize = scale;
+    }
     let k = initial_k(measured, config.resize, config.crop, config.octaves);
     let mut lines = vec![format!(
         "exemplar {}x{}: {}, {} (k_init = [{:.3}, {:.3}] would start an octave on it)",
@@ -131,6 +151,12 @@ pub fn apply(
         k[0],
         k[1]
     )];
+    if let Some(scale) = scale {
+        lines.push(format!(
+            "working scale {scale} (--resize): a {} px crop holds one whole period, so the cells' shape can be learned; the model still paints at the exemplar's own scale",
+            config.crop
+        ));
+    }
     if !explicit.contains("gray") && measured.gray {
         config.gray = true;
         lines.push("every pixel's channels are equal: trained as gray (1 channel)".into());
@@ -264,6 +290,45 @@ mod tests {
         // A period longer than a crop: octave 0 must repeat with it (K > 1), never half of it.
         let k = initial_k(&measured([Some(200.0), Some(200.0)]), 0.5, 32, 5);
         assert!(k.iter().all(|k| (k - 3.125).abs() < 1e-6), "{k:?}");
+    }
+
+    #[test]
+    fn the_working_scale_fits_one_period_in_a_crop() {
+        let with = |down: f64, across: f64| Measured {
+            repeat: [Some(down), Some(across)].map(|p| {
+                p.map(|period| Repeat {
+                    period,
+                    strength: 0.5,
+                })
+            }),
+            ..measured([None, None])
+        };
+        // Honeycomb cells 59.5 px across (two rows 104 px down): the 32 px crop holds a cell at
+        // scale 0.5 (32 / 59.5 = 0.54, down to a step of 0.05).
+        assert_eq!(cell_scale(&with(104.0, 59.5), 32), Some(0.5));
+        // Bricks 135 px long, two courses 40 px: the shorter period sets it.
+        assert_eq!(cell_scale(&with(40.1, 135.0), 32), Some(0.75));
+        // A crop that holds the period already, or no period: the exemplar's own scale.
+        assert_eq!(cell_scale(&with(20.0, 30.0), 32), None);
+        assert_eq!(cell_scale(&measured([None, None]), 32), None);
+        // Never below the smallest scale.
+        assert_eq!(cell_scale(&with(400.0, 500.0), 32), Some(MIN_CELL_SCALE));
+        // The recipe takes it unless the run set its scale or crop, and says so.
+        let mut config = TrainConfig {
+            crop: 32,
+            resize: 1.0,
+            ..TrainConfig::default()
+        };
+        let lines = apply(&with(104.0, 59.5), &mut config, &BTreeSet::new(), true);
+        assert_eq!(config.resize, 0.5);
+        assert!(
+            lines.iter().any(|l| l.starts_with("working scale 0.5")),
+            "{lines:?}"
+        );
+        let explicit = BTreeSet::from(["resize".to_string()]);
+        config.resize = 1.0;
+        apply(&with(104.0, 59.5), &mut config, &explicit, true);
+        assert_eq!(config.resize, 1.0);
     }
 
     #[test]
