@@ -1,7 +1,7 @@
-//! SIFID regression: train on a shipped exemplar with a fixed seed and budget, evaluate, and
-//! compare with `benches/baselines.toml`. Exits 1, printing both numbers, when SIFID is above the
-//! threshold. `.ci/run` runs the `ci` budget; the `quick` budget (configs/quick.toml as shipped)
-//! runs by hand:
+//! Quality regression: train on a shipped exemplar with a fixed seed and budget, evaluate
+//! (SIFID and the structure distance), and compare with `benches/baselines.toml`. Exits 1,
+//! printing the numbers, when either is above its threshold. `.ci/run` runs the `ci` budget;
+//! the `quick` budget (configs/quick.toml as shipped) runs by hand:
 //!
 //! ```text
 //! cargo bench --bench sifid                            # budget "ci"
@@ -45,6 +45,13 @@ struct Baseline {
     command: Option<String>,
     /// Why the threshold is where it is.
     margin: Option<String>,
+    /// The structure distance measured when the baseline was set, and the one to fail above.
+    structure_measured: Option<f64>,
+    structure_threshold: Option<f64>,
+    /// Whether the config takes the recipe's choices from the exemplar (its working scale and
+    /// the rest, `train::recipe::apply`), as `ipfn train` does for keys its config leaves free.
+    #[serde(default)]
+    recipe: bool,
 }
 
 fn root() -> PathBuf {
@@ -90,13 +97,20 @@ fn main() {
     )
     .expect("config parses");
     config.iterations = base.iterations;
+    let exemplar_path = root().join(&base.exemplar);
+    let exemplar = ipfn::exemplar::read_exemplar(&exemplar_path).expect("exemplar");
+    if base.recipe {
+        let measured = ipfn::train::recipe::measure(&exemplar);
+        let free = Default::default(); // the preset's keys, as `ipfn train` leaves them free
+        for line in ipfn::train::recipe::apply(&measured, &mut config, &free, true) {
+            println!("recipe: {line}");
+        }
+    }
     // Other training seeds measure the spread a threshold's margin must cover.
     config.seed = match std::env::var("IPFN_SIFID_SEED") {
         Ok(seed) => seed.parse().expect("IPFN_SIFID_SEED is a number"),
         Err(_) => base.seed,
     };
-    let exemplar_path = root().join(&base.exemplar);
-    let exemplar = ipfn::exemplar::read_exemplar(&exemplar_path).expect("exemplar");
 
     println!(
         "SIFID regression, budget '{budget}': {} on {}, {} iterations, seed {}, {} samples at {}x{}",
@@ -178,29 +192,49 @@ fn main() {
         metrics::SIFID_NAME
     );
     let record = std::env::var_os("IPFN_SIFID_RECORD").is_some_and(|v| v == "1");
-    let (Some(measured), Some(threshold), false) = (base.measured, base.threshold, record) else {
+    let thresholds = (
+        base.measured,
+        base.threshold,
+        base.structure_measured,
+        base.structure_threshold,
+    );
+    let (Some(measured), Some(threshold), Some(s_measured), Some(s_threshold), false) = (
+        thresholds.0,
+        thresholds.1,
+        thresholds.2,
+        thresholds.3,
+        record,
+    ) else {
         println!(
-            "\nrecord in benches/baselines.toml [{budget}]: measured = {:.3}, date, command, and a threshold with its margin",
-            ours.sifid.mean
+            "\nrecord in benches/baselines.toml [{budget}]: measured = {:.3}, structure_measured = {:.4}, date, command, and thresholds with their margin",
+            ours.sifid.mean, ours.structure.mean
         );
         return;
     };
     println!(
-        "baseline: measured {measured:.3} on {} ({}), threshold {threshold:.3} ({})",
+        "baseline: measured SIFID {measured:.3}, structure {s_measured:.4} on {} ({}), thresholds {threshold:.3} and {s_threshold:.4} ({})",
         base.date.as_deref().unwrap_or("?"),
         base.command.as_deref().unwrap_or("?"),
         base.margin.as_deref().unwrap_or("?")
     );
-    if ours.sifid.mean > threshold {
+    let regressed = [
+        ("SIFID", ours.sifid.mean, threshold, measured),
+        ("STRUCTURE", ours.structure.mean, s_threshold, s_measured),
+    ]
+    .into_iter()
+    .filter(|&(_, ours, threshold, _)| ours > threshold)
+    .inspect(|(name, ours, threshold, measured)| {
         eprintln!(
-            "SIFID REGRESSION: {:.3} > threshold {threshold:.3} (baseline {measured:.3} measured {}); find the change that made training worse, do not raise the threshold to pass",
-            ours.sifid.mean,
+            "{name} REGRESSION: {ours:.4} > threshold {threshold:.4} (baseline {measured:.4} measured {}); find the change that made training worse, do not raise the threshold to pass",
             base.date.as_deref().unwrap_or("?")
-        );
+        )
+    })
+    .count();
+    if regressed > 0 {
         std::process::exit(1);
     }
     println!(
-        "ok: SIFID {:.3} <= threshold {threshold:.3}",
-        ours.sifid.mean
+        "ok: SIFID {:.3} <= threshold {threshold:.3}, structure {:.4} <= threshold {s_threshold:.4}",
+        ours.sifid.mean, ours.structure.mean
     );
 }

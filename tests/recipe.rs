@@ -137,6 +137,45 @@ fn a_time_budget_plans_the_run_scores_it_and_keeps_the_best() {
     assert!(stderr(&by_folder).contains("best.ipfn"));
 }
 
+/// A periodic photo whose cells are wider than a crop trains at the scale at which a crop holds
+/// one (the shipped honeycomb: cells 59.5 px across, crops of 32 px, scale 0.5), and still
+/// paints at its own scale; a run that sets its scale keeps it.
+#[test]
+fn a_crop_holds_a_whole_cell_of_a_periodic_photo() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let honeycomb =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("exemplars/honeycomb.png");
+    std::fs::copy(honeycomb, d.join("h.png")).unwrap();
+    std::fs::write(d.join("tiny.toml"), TINY).unwrap();
+    let train = |out: &str, extra: &[&str]| {
+        let mut args = vec![
+            "train",
+            "h.png",
+            "--config",
+            "tiny.toml",
+            "--iterations",
+            "1",
+        ];
+        args.extend(["--out", out]);
+        args.extend(extra);
+        let run = ipfn(d, &args);
+        assert!(run.status.success(), "{}", stderr(&run));
+        let text = std::fs::read_to_string(d.join(out).join("config.toml")).unwrap();
+        let config = TrainConfig::from_toml(&text, std::path::Path::new("config.toml")).unwrap();
+        (stderr(&run), config)
+    };
+    let (err, config) = train("runs/h", &[]);
+    assert!(err.contains("working scale 0.5"), "{err}");
+    assert_eq!((config.crop, config.resize), (32, 0.5));
+    let model = Checkpoint::load(&d.join("runs/h/latest.ipfn")).unwrap();
+    let (generator, _) = GeneratorWeights::read_from(&model).unwrap();
+    assert_eq!(generator.crop, 64, "the model's pixel is the exemplar's");
+    let (err, config) = train("runs/own", &["--resize", "1"]);
+    assert!(!err.contains("working scale"), "{err}");
+    assert_eq!(config.resize, 1.0);
+}
+
 #[test]
 fn a_gray_photo_stored_as_rgb_trains_and_paints_as_gray() {
     let dir = tempfile::tempdir().unwrap();
