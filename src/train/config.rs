@@ -108,8 +108,8 @@ pub struct TrainConfig {
     /// the budget is spent. Unset: `iterations` alone.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub time: Option<String>,
-    /// Samples scored (SIFID against the exemplar, at its size) at each checkpoint of an image
-    /// run; the best-scoring generator is kept as `best.ipfn`. 0: no scoring.
+    /// Samples scored (SIFID and structure distance against the exemplar, at its size) at each
+    /// checkpoint of an image run; the best-scoring generator is kept as `best.ipfn`. 0: none.
     pub score_samples: usize,
     /// Decay per iteration of the moving average of the generator's weights that the run
     /// scores, saves and paints ([`super::average`]); 0 paints the trained weights themselves.

@@ -73,7 +73,8 @@ pub struct Trainer {
     adam_critic: Adam,
     /// Iterations completed.
     pub iteration: u64,
-    /// The best score so far (SIFID at a checkpoint; lower is better) and its iteration.
+    /// The best score so far ([`score::Score::combined`], SIFID × structure distance; lower is
+    /// better) and its iteration.
     best: Option<(f64, u64)>,
     /// The run folder's lock, taken by `start`, `resume` or the first `run`.
     lock: Option<lock::RunLock>,
