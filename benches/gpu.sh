@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
-# GPU figures for the README in one run, on a machine with an NVIDIA GPU (issue 6 and 8):
+# GPU figures for the book's performance page in one run, on a machine with an NVIDIA GPU:
 # `ipfn bench` for every GPU device and both GPU engines (our generator kernel, burn's path),
 # then the peak device memory of `ipfn synth` at growing sizes, polled from nvidia-smi.
 #
 #   benches/gpu.sh [IPFN_BINARY] [DEVICES]      e.g. benches/gpu.sh ./ipfn wgpu,cuda
 #
-# The binary must be built with `--features cuda` for the cuda rows. Bench rows print our time
+# The binary must be built with `--features cuda` for the cuda rows (`cargo build-cuda`). Bench rows print our time
 # beside the matmul floor measured in the same run and the authors' H100 figures.
 set -uo pipefail
 ipfn="${1:-ipfn}"

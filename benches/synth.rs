@@ -7,7 +7,7 @@
 //! - GEMM floor: the same FLOPs as bare `gemm` calls on all cores (no encoding, no latent, no
 //!   bias), the most the matrix products alone can do here;
 //! - the authors' PyTorch code (21.9 s for 1024² on the 2-core reference machine: measured
-//!   separately, see DESIGN.md; not re-run here).
+//!   separately, see the book's performance page; not re-run here).
 //!
 //! A second table times 1, 3 and 9 output channels (a material map set) at the largest size.
 //!

@@ -6,7 +6,7 @@
 //! - beside its floor measured now: both networks' matrix products as bare GEMMs
 //!   (`ipfn::bench::floor`);
 //! - and, for the authors' config, beside the authors' PyTorch code on the same 2-core machine
-//!   (40.6 s, measured separately: DESIGN.md §3; not re-run here).
+//!   (40.6 s, measured separately: the book's performance page; not re-run here).
 //!
 //! A third row times `quick.toml` with the diversity hinge (`diversity = 1`, what a photo with
 //! no clear period trains with), whose floor adds the twins' generator forward and backward.

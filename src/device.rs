@@ -188,7 +188,7 @@ pub fn cuda_device() -> Result<Device> {
 #[cfg(not(feature = "cuda"))]
 pub fn cuda_device() -> Result<Device> {
     Err(input_error!(
-        "--device cuda: this ipfn was built without CUDA; reinstall with `cargo install --path . --features cuda`, or use --device wgpu"
+        "--device cuda: this ipfn was built without CUDA; reinstall with `cargo install-cuda` (the CUDA build) from the project's folder, or use --device wgpu"
     ))
 }
 
@@ -217,15 +217,8 @@ pub fn wgpu_device() -> Result<Device> {
         })
 }
 
-/// Whether GPU synthesis uses the generator kernel ([`KernelGenerator`]) where it can:
-/// `IPFN_GPU_KERNEL=0` selects the burn generator instead (for comparison in `ipfn bench`).
-pub fn gpu_kernel_enabled() -> bool {
-    std::env::var("IPFN_GPU_KERNEL").map_or(true, |v| v != "0")
-}
-
 /// Points per burn forward pass on a GPU: bounds device memory (`width` activations per point)
-/// while keeping launches few. `IPFN_GPU_CHUNK_POINTS` overrides it (for tuning with
-/// `ipfn bench`).
+/// while keeping launches few.
 pub const GPU_CHUNK_POINTS: usize = 1 << 16;
 /// Points per burn forward pass on flex: activations stay in cache (`ipfn bench`: 1024² takes
 /// half the time it takes with 65,536-point chunks).
@@ -236,11 +229,7 @@ impl DeviceChoice {
     pub fn chunk_points(&self) -> usize {
         match self {
             Self::Cpu | Self::Flex => FLEX_CHUNK_POINTS,
-            Self::Wgpu | Self::Cuda => std::env::var("IPFN_GPU_CHUNK_POINTS")
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .filter(|&n: &usize| n > 0)
-                .unwrap_or(GPU_CHUNK_POINTS),
+            Self::Wgpu | Self::Cuda => GPU_CHUNK_POINTS,
         }
     }
 }

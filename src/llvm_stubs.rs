@@ -3,8 +3,9 @@
 //! cubecl-cuda (behind burn's CUDA backend) always links its second kernel compiler, which
 //! lowers kernels through LLVM to PTX, and its build script downloads LLVM's static libraries
 //! from a host outside crates.io. ipfn compiles its CUDA kernels with NVRTC instead (cubecl's
-//! `cuda-cpp`, enabled in Cargo.toml), which never calls LLVM. So the project builds with
-//! `DOCS_RS=1` set (`.cargo/config.toml`), which skips that download, and these functions stand
+//! `cuda-cpp`, enabled in Cargo.toml), which never calls LLVM. So the CUDA build sets
+//! `DOCS_RS=1` for itself (`cargo build-cuda`, `cargo install-cuda`: aliases in
+//! `.cargo/config.toml`), which skips that download, and these functions stand
 //! in for the LLVM symbols the unused compiler references: reaching one aborts the process.
 //!
 //! The list is every symbol the linker reported undefined, made with

@@ -147,17 +147,14 @@ fn other_textures_score_far_above_crops_of_one() {
 }
 
 /// `npm pack nsfwjs@4.4.0` + convert.js must give the committed asset byte for byte. Runs where
-/// npm is on the PATH (CI installs it); set IPFN_SKIP_NPM=1 to skip it offline.
+/// npm and its registry are reachable (CI installs npm).
 #[test]
+#[ignore = "needs npm and its registry; run by `cargo test --release -- --ignored`"]
 fn inception_stem_is_rederived_from_the_npm_tarball() {
-    if std::env::var_os("IPFN_SKIP_NPM").is_some_and(|v| v == "1") {
-        eprintln!("IPFN_SKIP_NPM=1: skipped");
-        return;
-    }
-    if Command::new("npm").arg("--version").output().is_err() {
-        eprintln!("npm is not installed: skipped (CI installs it)");
-        return;
-    }
+    assert!(
+        Command::new("npm").arg("--version").output().is_ok(),
+        "npm is not installed (apt-get install npm)"
+    );
     let dir = tempfile::tempdir().unwrap();
     let pack = Command::new("npm")
         .args(["pack", "--silent", "nsfwjs@4.4.0"])

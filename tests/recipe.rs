@@ -1,4 +1,4 @@
-//! Training settings from the machine and the exemplar (issue 16): on the CPU the preset's
+//! Training settings from the machine and the exemplar: on the CPU the preset's
 //! network, scale and crop; the exemplar's period is measured and reported, a gray photo trains
 //! as gray; a time budget plans the run's length; the run scores its checkpoints (SIFID) and
 //! keeps the best as `best.ipfn`, which synth prefers.

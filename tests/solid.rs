@@ -1,4 +1,4 @@
-//! Solid textures from a 2D exemplar (Henzler et al. 2020; issue 8): `train --solid` learns a
+//! Solid textures from a 2D exemplar (Henzler et al. 2020): `train --solid` learns a
 //! 3D generator whose axis-aligned slices look like the exemplar; `synth --slice` writes those
 //! slices and `synth --solid --size WxHxD` the volume.
 

@@ -330,11 +330,10 @@ fn it_learns_the_period_of_stripes() {
     );
 }
 
+#[cfg(feature = "wgpu")]
 #[test]
+#[ignore = "needs a wgpu adapter (CI: lavapipe); run by `cargo test --release -- --ignored`"]
 fn trains_on_wgpu() {
-    if common::skip_wgpu() {
-        return;
-    }
     let dir = common::tiny_run_folder();
     let d = dir.path();
     let out = ipfn(

@@ -263,57 +263,73 @@ fn bad_requests_get_400_with_a_message_and_the_server_lives_on() {
 
 #[test]
 fn a_run_is_followed_live_and_reported_at_its_end() {
+    use std::sync::atomic::AtomicBool;
+    use std::sync::mpsc;
+
     let dir = tiny_run_folder();
-    let d = dir.path();
-    // A run that trains while the viewer watches it.
-    let mut train = Command::new(env!("CARGO_BIN_EXE_ipfn"))
-        .args([
-            "train",
-            "ex.png",
-            "--config",
-            "tiny.toml",
-            "--iterations",
-            "400",
-            "--device",
-            "flex",
-            "-q",
-            "--out",
-            "run",
-        ])
-        .current_dir(d)
-        .spawn()
-        .unwrap();
-    while !d.join("run/latest.ipfn").is_file() {
-        assert!(
-            train.try_wait().unwrap().is_none(),
-            "training ended before its first checkpoint"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    let viewer = view(d, &["run"]);
+    let d = dir.path().to_path_buf();
+    // A run that trains in this process while the viewer watches it. After each of its first
+    // three checkpoints it waits for the test to look (an event, not a clock), so the viewer
+    // is seen following a run that is still running.
+    let (seen_tx, seen_rx) = mpsc::channel::<u64>();
+    let (go_tx, go_rx) = mpsc::channel::<()>();
+    let trainer = {
+        let d = d.clone();
+        std::thread::spawn(move || {
+            let config = ipfn::train::TrainConfig {
+                iterations: 400,
+                ..ipfn::train::TrainConfig::from_toml(common::TINY, &d.join("tiny.toml")).unwrap()
+            };
+            let device = burn::prelude::Device::flex();
+            let mut trainer =
+                ipfn::train::Trainer::new(config, d.join("ex.png"), &d.join("run"), &device)
+                    .unwrap();
+            let stop = AtomicBool::new(false);
+            trainer
+                .run(&stop, |_, stats| {
+                    // Called before iteration i's checkpoint is saved: i - 1's is on disk.
+                    if (2..=4).contains(&stats.iteration) {
+                        seen_tx.send(stats.iteration - 1).unwrap();
+                        go_rx.recv().unwrap();
+                    }
+                })
+                .unwrap();
+        })
+    };
+    let checkpoint = seen_rx.recv().unwrap();
+    assert_eq!(checkpoint, 1);
+    let viewer = view(&d, &["run"]);
     let run = |v: &Viewer| -> serde_json::Value {
         serde_json::from_slice(&fetch(v, "GET", "/api/run").1).unwrap()
     };
     let info = |v: &Viewer| -> serde_json::Value {
         serde_json::from_slice(&fetch(v, "GET", "/api/info").1).unwrap()
     };
-    let first = (run(&viewer), info(&viewer)["model"]["version"].clone());
-    assert_eq!(first.0["state"], "running", "{}", first.0);
+    let first = run(&viewer);
+    assert_eq!(first["state"], "running", "{first}");
     // The plane follows the newest checkpoint.
     let mut versions = std::collections::HashSet::new();
-    while versions.len() < 3 && train.try_wait().unwrap().is_none() {
+    for expected in 1..=3 {
+        if expected > 1 {
+            go_tx.send(()).unwrap();
+            assert_eq!(seen_rx.recv().unwrap(), expected);
+        }
+        assert_eq!(run(&viewer)["state"], "running");
         versions.insert(info(&viewer)["model"]["version"].to_string());
         let (status, _) = fetch(&viewer, "GET", "/tile?size=32");
         assert_eq!(status, 200);
     }
-    assert!(
-        versions.len() >= 3,
-        "the model changed as the run checkpointed: {versions:?}"
+    assert_eq!(
+        versions.len(),
+        3,
+        "the model changed at each checkpoint: {versions:?}"
     );
-    assert!(train.wait().unwrap().success());
+    go_tx.send(()).unwrap();
+    trainer.join().unwrap();
     let last = run(&viewer);
     assert_eq!(last["state"], "finished", "{last}");
     assert_eq!(last["iteration"], 400);
+    let d = d.as_path();
     let metrics = &last["metrics"];
     for column in std::iter::once("iteration").chain(common::view::PLOTTED) {
         assert!(

@@ -12,21 +12,17 @@ use common::view::{assert_same, pixels, synth, train_quietly, view};
 
 /// Headless chromium: Debian's `chromium` and tests/browser's playwright-core (`npm ci`), as
 /// `.ci/run` installs them. Skipped (with a message) only outside CI when they are missing.
-fn browser_ready() -> bool {
+fn assert_browser_ready() {
     let chromium =
         Path::new(&std::env::var("CHROMIUM").unwrap_or("/usr/bin/chromium".into())).is_file();
     let driver = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/browser/node_modules/playwright-core")
         .is_dir();
-    if chromium && driver {
-        return true;
-    }
     assert!(
-        std::env::var("CI").is_err(),
-        "CI must run the browser tests: install chromium and run `npm ci --prefix tests/browser`"
+        chromium && driver,
+        "the browser tests need /usr/bin/chromium (apt-get install chromium) and \
+         `npm ci --prefix tests/browser`"
     );
-    eprintln!("skipped: needs /usr/bin/chromium and `npm ci --prefix tests/browser`");
-    false
 }
 
 fn browse(mode: &str, url: &str, out: &Path, env: &[(&str, String)]) -> serde_json::Value {
@@ -52,10 +48,9 @@ fn screenshot(name: &str) -> Vec<(&'static str, String)> {
 }
 
 #[test]
+#[ignore = "needs chromium and `npm ci --prefix tests/browser`; run by `cargo test --release -- --ignored`"]
 fn chromium_shows_the_plane_as_synth_paints_it_and_pans() {
-    if !browser_ready() {
-        return;
-    }
+    assert_browser_ready();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let viewer = view(d, &[]);
@@ -135,10 +130,9 @@ fn chromium_shows_the_plane_as_synth_paints_it_and_pans() {
 }
 
 #[test]
+#[ignore = "needs chromium and `npm ci --prefix tests/browser`; run by `cargo test --release -- --ignored`"]
 fn chromium_shows_a_run_and_its_report() {
-    if !browser_ready() {
-        return;
-    }
+    assert_browser_ready();
     let dir = tiny_run_folder();
     let d = dir.path();
     train_quietly(d, "tiny.toml", "12", &["ex.png", "--out", "run"]);

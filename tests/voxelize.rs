@@ -1,4 +1,4 @@
-//! `ipfn voxelize`: meshes (.obj, .ply) to signed-distance volumes (issue 8).
+//! `ipfn voxelize`: meshes (.obj, .ply) to signed-distance volumes.
 
 mod common;
 

@@ -13,7 +13,8 @@
 //!   both networks' products as bare GEMMs ([`floor`]); on GPUs the generator's FLOPs of the
 //!   iteration (20 MLP passes over the batch's crops) as the matmul floor; and the authors'
 //!   PyTorch code measured on the 2-core
-//!   reference machine (DESIGN.md) or, on a GPU, on one H100 (issue 6), not re-run here;
+//!   reference machine or, on a GPU, on one H100, not re-run here (the book's performance
+//!   page has both measurements);
 //! - volumes (`volumes`): cubes painted in slabs by a 3D generator of the paper's size, beside
 //!   the same floors and the paper's 22.9 s for 512³.
 //!
@@ -35,11 +36,11 @@ pub use crate::model::shipped_model;
 use crate::synth::Synth;
 use crate::train::{TrainConfig, Trainer};
 
-/// The authors' PyTorch code on the 2-core reference machine (DESIGN.md): synth 1024².
+/// The authors' PyTorch code on the 2-core reference machine: synth 1024².
 pub const AUTHORS_SYNTH_1024_S: f64 = 21.9;
 /// The authors' PyTorch code on the 2-core reference machine: one training iteration, batch 4.
 pub const AUTHORS_ITERATION_S: f64 = 40.6;
-/// The authors' PyTorch code (PyTorch 2.11) on one H100, measured for issue 6: synth at
+/// The authors' PyTorch code (PyTorch 2.11) on one H100: synth at
 /// 1024² and 2048², and one training iteration at batch 4 and 8.
 pub const AUTHORS_H100_SYNTH_S: [(usize, f64); 2] = [(1024, 0.0143), (2048, 0.0527)];
 pub const AUTHORS_H100_ITERATION_S: [(usize, f64); 2] = [(4, 0.105), (8, 0.145)];
@@ -231,7 +232,7 @@ fn synth_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
                 {
                     emit(Row {
                         work: format!("synth {n}²"),
-                        device: "authors' PyTorch on one H100 (issue 6, not re-run)".into(),
+                        device: "authors' PyTorch on one H100 (not re-run)".into(),
                         ours_s: authors,
                         floor: format!("ours is {:.2}x its time", ours / authors),
                         floor_s: None,
@@ -377,7 +378,7 @@ fn train_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
                 AUTHORS_H100_ITERATION_S
                     .iter()
                     .find(|(b, _)| *b == batch)
-                    .map(|&(_, t)| ("authors' PyTorch on one H100 (issue 6, not re-run)", t))
+                    .map(|&(_, t)| ("authors' PyTorch on one H100 (not re-run)", t))
             } else {
                 (batch == 4).then_some((
                     "authors' PyTorch (reference machine, not re-run)",

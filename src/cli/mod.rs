@@ -6,11 +6,9 @@ mod bench;
 mod eval;
 mod fit;
 mod synth;
-mod tile;
 mod tools;
 mod train;
 mod view;
-mod zarr;
 
 use clap::{Parser, Subcommand};
 

@@ -1,4 +1,4 @@
-//! Finite-difference checks of the exact gradient penalty (DESIGN.md §2), one body run on 2 and
+//! Finite-difference checks of the exact gradient penalty (the book's design notes), one body run on 2 and
 //! 3 axes. Any change to the critic must keep these passing. D is piecewise linear, so
 //! differences are exact within a linear region: steps that flip a LeakyReLU mask are detected
 //! and skipped.

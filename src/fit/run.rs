@@ -15,9 +15,9 @@ use crate::checkpoint::Checkpoint;
 use crate::error::{Error, Result};
 use crate::exemplar::Exemplar;
 use crate::input_error;
+use crate::io::lock::RunLock;
 use crate::latent::derive_seed;
 use crate::maps::MapSet;
-use crate::train::lock::RunLock;
 
 const CONFIG_KEY: &str = "fit_config";
 const STAGE_KEY: &str = "fit_stage";

@@ -1,4 +1,5 @@
-//! Files in and out: `.npy` arrays, images written in row bands, and atomic replacement.
+//! Files in and out: `.npy` arrays, images written in row bands, and atomic replacement; the
+//! run folder's lock ([`lock`]).
 //!
 //! Every file we produce is written to a temporary file in the destination folder and renamed
 //! into place when complete, so a crash or Ctrl-C never leaves a half-written output.
@@ -12,6 +13,7 @@ use npyz::WriterBuilder;
 use crate::error::{Error, Result};
 use crate::input_error;
 
+pub mod lock;
 pub mod shard;
 mod volume;
 pub mod zarr;

@@ -18,7 +18,7 @@ pub use painter::{DEFAULT_BAND_PIXELS, Painter};
 pub use tile::TileAdjustment;
 
 use crate::condition::{Condition, DensityRamp, Guide};
-use crate::device::{DeviceChoice, gpu_kernel_enabled};
+use crate::device::DeviceChoice;
 use crate::error::Result;
 use crate::generator::{GeneratorConfig, GeneratorWeights};
 use crate::input_error;
@@ -55,7 +55,7 @@ impl Synth {
             noise_scale: 1.0,
             condition: None,
             device: DeviceChoice::Cpu,
-            gpu_kernel: gpu_kernel_enabled(),
+            gpu_kernel: true,
         }
     }
 
@@ -119,8 +119,8 @@ impl Synth {
         self
     }
 
-    /// Whether GPU devices paint with ipfn's generator kernel where it applies (default: yes,
-    /// unless `IPFN_GPU_KERNEL=0`) or with burn's generator.
+    /// Whether GPU devices paint with ipfn's generator kernel where it applies (default: yes)
+    /// or with burn's generator.
     pub fn gpu_kernel(mut self, on: bool) -> Self {
         self.gpu_kernel = on;
         self

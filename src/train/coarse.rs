@@ -15,7 +15,7 @@
 
 use super::Trainer;
 use super::adam::Adam;
-use super::step::stream;
+use super::draws::stream;
 use crate::critic::Critic;
 
 /// Which of the two critics' grids a crop is drawn on.

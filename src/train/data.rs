@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use burn::prelude::*;
 
 use super::coarse::Scale;
-use super::step::uniform;
+use super::draws::uniform;
 use super::{RunKind, TrainConfig, Trainer};
 use crate::error::Result;
 use crate::exemplar::{Exemplar, read_exemplar, read_sdf_volume};

@@ -3,8 +3,8 @@
 //!
 //! The critic judges one crop at a time, and on a photo with no clear period its crops are
 //! shorter than the period the generator learns. A generator that ignores its latent field and
-//! paints one tile over and over then looks real crop by crop, and its samples are a grid
-//! (README "Training on photographs": repeat strength 0.6 to 0.9 on photos whose own is 0.03).
+//! paints one tile over and over then looks real crop by crop, and its samples are a grid (a
+//! repeat strength far above the photo's own: the book's photographs experiment).
 //! With `diversity = w`, each generator step also paints every crop's twin, the same
 //! coordinates under a fresh latent field, and adds
 //!
@@ -18,7 +18,7 @@
 //! seeking, Mao et al. 2019, rewards the ratio of output to latent distance without a bound.)
 
 use super::Trainer;
-use super::step::stream;
+use super::draws::stream;
 
 /// Pairs of the exemplar's crops averaged for the target distance.
 pub const TARGET_PAIRS: usize = 64;

@@ -8,7 +8,7 @@ use burn::prelude::*;
 use rayon::prelude::*;
 
 use super::coarse::Scale;
-use super::step::{stream, uniform};
+use super::draws::{stream, uniform};
 use super::{RunKind, Trainer};
 use crate::generator::backward::{self, Pass};
 use crate::generator::fused::{CHUNK_POINTS, FusedGenerator};

@@ -7,8 +7,8 @@
 //! - [`fakes`]: generated crops, the critic's fake input;
 //! - [`diversity`]: a hinge that keeps generated crops as varied as the exemplar's;
 //! - [`coarse`]: a second critic on strided crops several periods wide, for the arrangement;
-//! - [`step`]: one iteration, random streams and initialisation; on the CPU the critic's and
-//!   the generator's steps are fused ([`crate::critic::fused`], [`crate::generator::backward`]),
+//! - [`draws`]: every random draw's stream, and the networks' initial weights;
+//! - [`step`]: one iteration; on the CPU the critic's and the generator's steps are fused ([`crate::critic::fused`], [`crate::generator::backward`]),
 //!   elsewhere they go through burn's autodiff;
 //! - [`average`]: the moving average of the generator's weights that a run can paint;
 //! - [`run`]: the run folder, checkpoints, previews, metrics, and the training loop;
@@ -21,8 +21,8 @@ pub mod coarse;
 pub mod config;
 pub mod data;
 pub mod diversity;
+pub mod draws;
 pub mod fakes;
-pub mod lock;
 pub mod overrides;
 pub mod recipe;
 pub mod run;
@@ -47,10 +47,11 @@ use crate::error::Result;
 use crate::exemplar::Exemplar;
 use crate::generator::{Generator, GeneratorConfig, GeneratorWeights};
 use crate::input_error;
+use crate::io::lock::RunLock;
 use crate::maps::MapSet;
 use adam::Adam;
+use draws::{initialise, stream};
 use run::{EXEMPLAR_KEY, FINGERPRINT_KEY, ITERATION_KEY, TRAIN_CONFIG_KEY};
-use step::{initialise, stream};
 
 /// A training run: networks, optimisers, exemplar and run folder.
 pub struct Trainer {
@@ -77,7 +78,7 @@ pub struct Trainer {
     /// better) and its iteration.
     best: Option<(f64, u64)>,
     /// The run folder's lock, taken by `start`, `resume` or the first `run`.
-    lock: Option<lock::RunLock>,
+    lock: Option<RunLock>,
     /// Steps through the framework's autodiff even on the CPU ([`Trainer::framework_steps`]).
     framework_only: bool,
     /// The most memory a fused generator step keeps its forward passes in
@@ -169,7 +170,7 @@ impl Trainer {
         }
         let mut trainer = Self::new(config, source, run_dir, device)?;
         run::create_dir(run_dir)?;
-        trainer.lock = Some(lock::RunLock::acquire(run_dir)?);
+        trainer.lock = Some(RunLock::acquire(run_dir)?);
         Ok(trainer)
     }
 
@@ -223,7 +224,7 @@ impl Trainer {
                 run_dir.display()
             ));
         }
-        let lock = lock::RunLock::acquire(run_dir)?;
+        let lock = RunLock::acquire(run_dir)?;
         let resumed = Self::resume_file(run_dir, &file, lock, iterations, device).map_err(|e| {
             // What the state file says (its config, its exemplar's fingerprint) decides the
             // refusal: name the file.
@@ -251,7 +252,7 @@ impl Trainer {
     fn resume_file(
         run_dir: &Path,
         latest: &Path,
-        lock: lock::RunLock,
+        lock: RunLock,
         iterations: Option<u64>,
         device: &Device,
     ) -> Result<Self> {

@@ -8,9 +8,14 @@ use super::config::TrainConfig;
 macro_rules! overrides {
     ($( $(#[doc = $doc:expr])* $key:ident : $ty:ty, $resume:ident $(, $attr:meta)*; )*) => {
         /// Flags that override config keys of the same name.
-        #[derive(Debug, Clone, Default, clap::Args)]
+        #[derive(Debug, Clone, Default)]
+        #[cfg_attr(feature = "cli", derive(clap::Args))]
         pub struct TrainOverrides {
-            $( $(#[doc = $doc])* #[arg(long $(, $attr)*)] pub $key: Option<$ty>, )*
+            $(
+                $(#[doc = $doc])*
+                #[cfg_attr(feature = "cli", arg(long $(, $attr)*))]
+                pub $key: Option<$ty>,
+            )*
         }
 
         impl TrainOverrides {

@@ -28,9 +28,9 @@ use crate::metrics::{Repeat, repeats};
 const MIN_PERIOD: f64 = 4.0;
 
 /// The weakest repeat the recipe calls a period: the autocorrelation at its peak over the
-/// autocorrelation at lag 0. The six photos of README "Training on photographs" fall far to
-/// either side: 0.49 to 0.53 for the honeycomb and brick, 0.01 to 0.11 for flecked_2, marble,
-/// paisley and veined, whose "peaks" are noise.
+/// autocorrelation at lag 0. Regular photos (a honeycomb, a brick wall) and stochastic ones
+/// (marble, flecks) fall far to either side of it; the book's photographs experiment has the
+/// figures.
 pub const CLEAR_REPEAT: f64 = 0.25;
 
 /// What the recipe measured on the exemplar, at its own scale.

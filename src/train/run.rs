@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use super::step::{IterationStats, stream};
+use super::draws::stream;
+use super::step::IterationStats;
 use super::{RunKind, Trainer};
 use crate::checkpoint::{self, Checkpoint};
 use crate::condition::DensityRamp;
@@ -142,7 +143,7 @@ impl Trainer {
     ) -> Result<RunEnd> {
         self.prepare_run_dir()?;
         if self.lock.is_none() {
-            self.lock = Some(super::lock::RunLock::acquire(&self.run_dir)?);
+            self.lock = Some(crate::io::lock::RunLock::acquire(&self.run_dir)?);
         }
         let budget = self.config.time_budget()?;
         let (clock, first, cap) = (Instant::now(), self.iteration, self.config.iterations);
@@ -183,7 +184,7 @@ impl Trainer {
 
     /// Writes `report.html`; a failure (a full disk) is a warning: the run itself is saved.
     fn report(&self, state: &str) {
-        if let Err(e) = crate::view::run::write_report(&self.run_dir, state) {
+        if let Err(e) = crate::report::write_report(&self.run_dir, state) {
             eprintln!("warning: report.html not written: {e}");
         }
     }

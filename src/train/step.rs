@@ -5,41 +5,17 @@
 
 use std::time::Instant;
 
-use burn::module::{Module, ModuleMapper, Param};
 use burn::optim::GradientsParams;
 use burn::prelude::*;
 
 use super::adam::Adam;
 use super::coarse::Scale;
+use super::draws::uniform;
 use super::fakes::FakeSample;
 use super::{Trainer, diversity};
 use crate::critic::fused::FusedCritic;
 use crate::generator::backward::{self, GeneratorGradients};
 use crate::generator::fused::FusedGenerator;
-use crate::latent::{derive_seed, mix64};
-
-/// Purposes of random draws, so no two share a stream.
-pub(crate) mod stream {
-    // The coarse critic's (see `coarse`) draw from streams of their own, so a run without it
-    // draws exactly as before.
-    pub const INIT_GENERATOR: u64 = 1;
-    pub const INIT_CRITIC: u64 = 2;
-    pub const REAL_CROP: u64 = 3;
-    pub const SHIFT: u64 = 4;
-    pub const LATENT: u64 = 5;
-    pub const ALPHA: u64 = 6;
-    pub const CRITIC_FAKE: u64 = 7;
-    pub const GENERATOR_FAKE: u64 = 8;
-    pub const PREVIEW: u64 = 9;
-    pub const GUIDE: u64 = 10;
-    pub const SLICE_AXIS: u64 = 11;
-    pub const DIVERSITY: u64 = 12;
-    pub const COARSE_REAL_CROP: u64 = 13;
-    pub const COARSE_CRITIC_FAKE: u64 = 14;
-    pub const COARSE_GENERATOR_FAKE: u64 = 15;
-    pub const COARSE_ALPHA: u64 = 16;
-    pub const INIT_COARSE_CRITIC: u64 = 17;
-}
 
 /// Which critic step of which iteration, and its penalty's weight (`None`: no penalty).
 #[derive(Debug, Clone, Copy)]
@@ -47,67 +23,6 @@ struct CriticStepInput {
     it: u64,
     step: u64,
     lambda: Option<f64>,
-}
-
-/// Uniform in [0, 1) from a seed and counters.
-pub(crate) fn uniform(seed: u64, counters: &[u64]) -> f32 {
-    (derive_seed(seed, counters) >> 40) as f32 / 16_777_216.0
-}
-
-/// Re-initialises every float parameter except the generator's K with PyTorch's default
-/// uniform(-1/sqrt(fan_in), 1/sqrt(fan_in)), from hashed draws.
-pub(crate) fn initialise<M: Module>(module: M, seed: u64, stream: u64) -> M {
-    struct Init {
-        seed: u64,
-        stream: u64,
-        path: Vec<String>,
-        fan_in: usize,
-    }
-    impl ModuleMapper for Init {
-        fn enter_module(&mut self, name: &str, _: &str) {
-            self.path.push(name.to_string());
-        }
-        fn exit_module(&mut self, _: &str, _: &str) {
-            self.path.pop();
-        }
-        fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
-            let name = self.path.last().cloned().unwrap_or_default();
-            if name == "k" {
-                return param;
-            }
-            let (id, tensor, mapper) = param.consume();
-            let shape = tensor.dims();
-            if name == "weight" {
-                // Linear weights are [in, out]; convolution weights [out, in, kh, kw].
-                self.fan_in = if D == 2 {
-                    shape[0]
-                } else {
-                    shape[1..].iter().product()
-                };
-            }
-            let bound = 1.0 / (self.fan_in.max(1) as f32).sqrt();
-            let key = self.path.iter().fold(self.seed, |h, p| {
-                mix64(h ^ p.bytes().fold(0u64, |a, b| mix64(a ^ b as u64)))
-            });
-            let n: usize = shape.iter().product();
-            let values: Vec<f32> = (0..n as u64)
-                .map(|i| (uniform(key, &[self.stream, i]) * 2.0 - 1.0) * bound)
-                .collect();
-            let fresh = Tensor::<D>::from_data(TensorData::new(values, shape), &tensor.device());
-            let fresh = if tensor.is_require_grad() {
-                fresh.require_grad()
-            } else {
-                fresh
-            };
-            Param::from_mapped_value(id, fresh, mapper)
-        }
-    }
-    module.map(&mut Init {
-        seed,
-        stream,
-        path: Vec::new(),
-        fan_in: 1,
-    })
 }
 
 /// Losses of one iteration (from its last critic and generator steps).

@@ -6,10 +6,9 @@
 //!   tiles ([`ViewModel::tile_png`]), painted by the same [`crate::synth::Painter`] as
 //!   `ipfn synth`, so that a tile holds exactly the pixels of the `ipfn synth` command
 //!   [`View::synth_args`] names;
-//! - [`run`]: a run folder's metrics, previews, config and state, and `report.html`;
+//! - [`crate::report`]: a run folder's metrics, previews, config and state, and `report.html`;
 //! - [`server`]: the HTTP server, its routes, render queue and tile cache.
 
-pub mod run;
 pub mod server;
 
 use std::collections::HashMap;
@@ -24,10 +23,7 @@ use crate::input_error;
 use crate::maps::MapSet;
 use crate::synth::Synth;
 
-/// The page (HTML with its CSS and script), served at `/` and written as `report.html`.
-pub const PAGE_HTML: &str = include_str!("page.html");
-/// The page's script: the plane, the controls, the plots.
-pub const PAGE_JS: &str = include_str!("page.js");
+pub use crate::report::{PAGE_HTML, PAGE_JS};
 
 /// Tiles are served within this many pixels of the origin on each axis (beyond, coordinates
 /// lose precision in f32 and a request is refused).

@@ -421,7 +421,7 @@ async fn run(State(shared): SharedState) -> Response {
     match &shared.run_dir {
         Some(dir) => {
             let dir = dir.clone();
-            let snapshot = tokio::task::spawn_blocking(move || super::run::snapshot(&dir)).await;
+            let snapshot = tokio::task::spawn_blocking(move || crate::report::snapshot(&dir)).await;
             match snapshot {
                 Ok(snapshot) => json_reply(&snapshot),
                 Err(e) => text(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
@@ -500,7 +500,7 @@ async fn preview(State(shared): SharedState, Path(name): Path<String>) -> Respon
     let Some(dir) = &shared.run_dir else {
         return text(StatusCode::NOT_FOUND, "no run folder");
     };
-    if !super::run::is_preview_name(&name) {
+    if !crate::report::is_preview_name(&name) {
         return text(StatusCode::NOT_FOUND, "no such preview");
     }
     match std::fs::read(dir.join("previews").join(&name)) {

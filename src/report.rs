@@ -9,6 +9,12 @@ use serde_json::{Value, json};
 
 use crate::error::Result;
 
+/// The page (HTML with its CSS and script), served by `ipfn view` at `/` and written as
+/// `report.html`.
+pub const PAGE_HTML: &str = include_str!("view/page.html");
+/// The page's script: the plane, the controls, the plots.
+pub const PAGE_JS: &str = include_str!("view/page.js");
+
 /// Metrics rows sent to the page at most (longer runs are thinned evenly; scored rows are kept).
 pub const MAX_POINTS: usize = 2000;
 
@@ -121,9 +127,11 @@ pub fn report_html(data: &Value) -> String {
         .replace('>', "\\u003e")
         .replace('&', "\\u0026");
     // The script first: the data, inserted last, is never searched for markers.
-    super::PAGE_HTML
-        .replace("/*IPFN_SCRIPT*/", super::PAGE_JS)
-        .replacen("/*IPFN_DATA*/", &format!("window.IPFN_REPORT = {json};"), 1)
+    PAGE_HTML.replace("/*IPFN_SCRIPT*/", PAGE_JS).replacen(
+        "/*IPFN_DATA*/",
+        &format!("window.IPFN_REPORT = {json};"),
+        1,
+    )
 }
 
 /// Writes `report.html` into the run folder (atomically): the metrics plots, previews and config

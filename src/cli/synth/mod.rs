@@ -1,5 +1,8 @@
 //! `ipfn synth`: images, map sets, tiles, volumes, meshes and slices.
 
+mod tile;
+mod zarr;
+
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -211,7 +214,7 @@ pub(super) fn synth(mut args: SynthArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| PathBuf::from(if volume { "synth.npy" } else { "synth.png" }));
     if crate::io::extension(&args.out) == "zarr" {
-        return super::zarr::synth_zarr(&args, device, [height, width], depth);
+        return zarr::synth_zarr(&args, device, [height, width], depth);
     }
     if args.shard.is_some() || args.shard_from_env.is_some() || args.chunk.is_some() {
         return Err(input_error!(
@@ -235,7 +238,7 @@ fn synth_image(args: &SynthArgs, device: DeviceChoice, [height, width]: [usize; 
     }
     let (checkpoint, description, _) = choose_checkpoint(args.model.as_deref(), Path::new("."))?;
     if crate::fit::PeriodicNet::is_in(&checkpoint) {
-        return super::tile::synth_tile(args, device, &checkpoint, &description);
+        return tile::synth_tile(args, device, &checkpoint, &description);
     }
     if args.lod.is_some() {
         return Err(input_error!(
@@ -288,7 +291,7 @@ fn synth_image(args: &SynthArgs, device: DeviceChoice, [height, width]: [usize; 
 }
 
 /// Says which model paints and, for a tile, how far K moved.
-pub(super) fn say_model(say: &impl Fn(String), model: &str, painter: &crate::synth::Painter) {
+fn say_model(say: &impl Fn(String), model: &str, painter: &crate::synth::Painter) {
     say(format!("model: {model}"));
     if let Some(t) = painter.tile_adjustment() {
         say(t.describe());
@@ -296,7 +299,7 @@ pub(super) fn say_model(say: &impl Fn(String), model: &str, painter: &crate::syn
 }
 
 /// An error for the flags that only volumes take, given for an image.
-pub(super) fn check_image_flags(args: &SynthArgs) -> Result<()> {
+fn check_image_flags(args: &SynthArgs) -> Result<()> {
     let volume_only = [
         (
             args.mesh.is_some(),
@@ -319,7 +322,7 @@ pub(super) fn check_image_flags(args: &SynthArgs) -> Result<()> {
 
 /// The `Synth` of a 2D model with the image flags: seed, zoom, offset, noise scale, device,
 /// tile, mirror and guide.
-pub(super) fn image_synth(
+fn image_synth(
     args: &SynthArgs,
     device: DeviceChoice,
     config: GeneratorConfig,
@@ -332,7 +335,8 @@ pub(super) fn image_synth(
         .zoom(args.zoom)
         .offset(&[y, x])
         .noise_scale(args.noise_scale)
-        .device(device);
+        .device(device)
+        .gpu_kernel(gpu_kernel_from_env());
     if args.tile {
         builder = builder.tile(&[height, width]);
     }
@@ -430,7 +434,13 @@ fn synth_slice(
 
 /// The `Synth` of a 3D model with the flags volumes and slices share: seed, zoom, noise scale,
 /// device and a density ramp along columns `0..width`.
-pub(super) fn volume_synth(
+/// `IPFN_GPU_KERNEL=0` paints on a GPU with burn's generator instead of ipfn's kernel (to
+/// compare the two, as `benches/gpu.sh` does).
+fn gpu_kernel_from_env() -> bool {
+    std::env::var("IPFN_GPU_KERNEL").map_or(true, |v| v != "0")
+}
+
+fn volume_synth(
     args: &SynthArgs,
     config: GeneratorConfig,
     weights: GeneratorWeights,
@@ -440,7 +450,8 @@ pub(super) fn volume_synth(
         .seed(args.seed)
         .zoom(args.zoom)
         .noise_scale(args.noise_scale)
-        .device(args.device.parse()?);
+        .device(args.device.parse()?)
+        .gpu_kernel(gpu_kernel_from_env());
     if let Some((from, to)) = args.density {
         builder = builder.density(crate::condition::DensityRamp { from, to, width });
     }
@@ -448,7 +459,7 @@ pub(super) fn volume_synth(
 }
 
 /// An error for the flags that only images take, given for a volume.
-pub(super) fn check_volume_flags(args: &SynthArgs) -> Result<()> {
+fn check_volume_flags(args: &SynthArgs) -> Result<()> {
     if args.mirror || args.guide.is_some() {
         return Err(input_error!(
             "--mirror and --guide are for images; volumes do not support them yet"

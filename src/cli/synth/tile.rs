@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use super::synth::SynthArgs;
+use super::SynthArgs;
 use crate::checkpoint::Checkpoint;
 use crate::device::DeviceChoice;
 use crate::error::Result;

@@ -4,7 +4,7 @@ use std::io::IsTerminal;
 use std::path::Path;
 use std::time::Instant;
 
-use super::synth::{
+use super::{
     SynthArgs, check_image_flags, check_volume_flags, image_synth, say_model, volume_synth,
 };
 use crate::device::DeviceChoice;
