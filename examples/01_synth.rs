@@ -1,4 +1,4 @@
-//! README section "`ipfn synth`: paint a sample", as library calls.
+//! The guide's "`ipfn synth`: paint a sample" (docs/guide/synth.md), as library calls.
 //!
 //! `cargo run --release --example 01_synth` writes `01_synth.png` (a 512x512 seamless tile)
 //! with the shipped honeycomb model. The `Synth` builder's methods mirror `ipfn synth`'s flags.

@@ -1,4 +1,4 @@
-//! README section "`ipfn train`: learn a pattern", as library calls.
+//! The guide's "`ipfn train`: learn a pattern" (docs/guide/train.md), as library calls.
 //!
 //! `cargo run --release --example 02_train` draws the bricks exemplar, trains a small model on
 //! it for 100 iterations (about 1.5 minutes on 2 cores) in `runs/02_train/`, and paints a sample.

@@ -1,4 +1,5 @@
-//! README section "`ipfn synth`: paint a sample", its seamless tiles, as library calls.
+//! The guide's "`ipfn synth`: paint a sample", its seamless tiles
+//! (docs/guide/synth.md), as library calls.
 //!
 //! `cargo run --release --example 03_tile` paints a 256x256 `--tile` of the shipped honeycomb,
 //! lays it 2x2 and scores the seams (`ipfn eval`'s seam score: about 1 is seamless), then

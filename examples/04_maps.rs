@@ -1,4 +1,4 @@
-//! README section "Material map sets", as library calls.
+//! The guide's "Material map sets" (docs/guide/train.md), as library calls.
 //!
 //! `cargo run --release --example 04_maps` draws the procedural material (albedo, normal,
 //! roughness, height), trains one small model on all four maps for 20 iterations in

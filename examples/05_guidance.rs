@@ -1,4 +1,4 @@
-//! README section "Directional guidance", as library calls.
+//! The guide's "Directional guidance" (docs/guide/train.md), as library calls.
 //!
 //! `cargo run --release --example 05_guidance` draws stripes that brighten from left to right,
 //! trains a guided model (`--guide x`) for 20 iterations in `runs/05_guidance/`, and paints it

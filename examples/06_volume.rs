@@ -1,4 +1,5 @@
-//! README section "Volumes: porous solids from a signed-distance volume", as library calls.
+//! The guide's "Volumes: porous solids from a signed-distance volume"
+//! (docs/guide/solid-and-volumes.md), as library calls.
 //!
 //! `cargo run --release --example 06_volume` draws a gyroid SDF volume, trains a 3D model on
 //! cubic crops for 10 iterations in `runs/06_volume/`, then paints a 48³ volume with its mesh:

@@ -1,4 +1,5 @@
-//! README section "Solid textures from a 2D exemplar", as library calls.
+//! The guide's "Solid textures from a 2D exemplar"
+//! (docs/guide/solid-and-volumes.md), as library calls.
 //!
 //! `cargo run --release --example 07_solid` trains a solid texture (`train --solid`: a 3D
 //! generator whose random axis-aligned slices the 2D critic compares with crops of the bricks

@@ -1,4 +1,4 @@
-//! README section "`ipfn eval`: how good is a model", as library calls.
+//! The guide's "`ipfn eval`: how good is a model" (docs/guide/eval.md), as library calls.
 //!
 //! `cargo run --release --example 08_eval` scores the shipped honeycomb model against the
 //! shipped honeycomb exemplar: SIFID and structure distance over 2 samples (beside the

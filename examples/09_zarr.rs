@@ -1,4 +1,5 @@
-//! README section "Sharded output: Zarr stores for many workers", as library calls.
+//! The guide's "Sharded output: Zarr stores for many workers"
+//! (docs/guide/synth.md), as library calls.
 //!
 //! `cargo run --release --example 09_zarr` writes `09_zarr.zarr`, a 2048x2048 float32 Zarr v3
 //! store, as 4 shards (one after another here; `ipfn synth --shard K/4` runs each as its own

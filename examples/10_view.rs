@@ -1,4 +1,5 @@
-//! README section "`ipfn view`: see the plane, follow training", as library calls.
+//! The guide's "`ipfn view`: see the plane, follow training"
+//! (docs/guide/view.md), as library calls.
 //!
 //! `cargo run --release --example 10_view` paints one tile of the viewer's plane (the shipped
 //! honeycomb at zoom 1.5, seed 3, offset 256,-512) into `10_view.png` and prints the `ipfn synth`

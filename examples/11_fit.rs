@@ -1,4 +1,4 @@
-//! README section "`ipfn fit`: a photo into a seamless tile", as library calls.
+//! The guide's "`ipfn fit`: a photo into a seamless tile" (docs/guide/fit.md), as library calls.
 //!
 //! `cargo run --release --example 11_fit` draws bricks, cuts them to 100x76 pixels (so the photo
 //! itself does not tile), fits a periodic network to the cut for 400 steps, writes the tile at

@@ -34,6 +34,8 @@ pub mod cli;
 pub mod condition;
 pub mod critic;
 pub mod device;
+#[cfg(test)]
+mod docs_tests;
 pub mod encoding;
 pub mod error;
 pub mod exemplar;

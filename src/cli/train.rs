@@ -115,7 +115,6 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
     let stop = crate::stop::flag();
     let bar = iteration_bar(!args.quiet, total, trainer.iteration);
     let (start, first, log_every) = (Instant::now(), trainer.iteration, trainer.config.log_every);
-    let run_dir = trainer.run_dir().to_path_buf();
     let end = trainer.run(stop, |trainer, stats| {
         let (it, total) = (stats.iteration, trainer.config.iterations);
         let line = stats.summary();
@@ -135,14 +134,6 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
             }
             None => {}
         }
-    })
-    .map_err(|e| match e {
-        // A write failed (a full disk, a lost mount): what was saved before is whole.
-        crate::Error::Runtime(m) if run_dir.join("latest.ipfn").exists() => crate::Error::Runtime(format!(
-            "{m}; the last checkpoint is intact: once the cause is fixed (a full disk: free space), continue with `ipfn train --resume {}`",
-            run_dir.display()
-        )),
-        e => e,
     })?;
     let latest = trainer.run_dir().join("latest.ipfn");
     if end == RunEnd::Stopped {

@@ -135,8 +135,23 @@ impl Trainer {
     /// saving checkpoints (scored, the best kept as `best.ipfn`) and previews on schedule (and a
     /// checkpoint when stopped), and calling `on_iteration` after each iteration. With a time
     /// budget (`config.time`) the run plans its length after [`PLAN_AFTER`] iterations and ends
-    /// when the budget is spent. Prepares the run folder first.
+    /// when the budget is spent. Prepares the run folder first. A failure after a checkpoint
+    /// (a full disk, a lost mount) says that the checkpoint is whole and how to continue.
     pub fn run(
+        &mut self,
+        stop: &AtomicBool,
+        on_iteration: impl FnMut(&Trainer, &IterationStats),
+    ) -> Result<RunEnd> {
+        self.train(stop, on_iteration).map_err(|e| match e {
+            Error::Runtime(m) if self.run_dir.join("latest.ipfn").exists() => Error::Runtime(format!(
+                "{m}; the last checkpoint is intact: once the cause is fixed (a full disk: free space), continue with `ipfn train --resume {}`",
+                self.run_dir.display()
+            )),
+            e => e,
+        })
+    }
+
+    fn train(
         &mut self,
         stop: &AtomicBool,
         mut on_iteration: impl FnMut(&Trainer, &IterationStats),
