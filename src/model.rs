@@ -68,7 +68,32 @@ pub fn choose_checkpoint(
     })
 }
 
-/// Loads `--model`, else the most recent model in `dir`, else the shipped honeycomb.
+/// A model file of either kind a command paints, read once.
+pub enum ModelFile {
+    /// A generator (an IPFN) of an image, a map set, a solid texture or a volume.
+    Generator(ChosenModel),
+    /// A tile fitted by `ipfn fit` (a periodic sine network, not an IPFN).
+    Tile {
+        checkpoint: Checkpoint,
+        description: String,
+    },
+}
+
+/// Reads `--model`, else the most recent model in `dir`, else the shipped honeycomb, whichever
+/// kind it is.
+pub fn load_model(explicit: Option<&Path>, dir: &Path) -> Result<ModelFile> {
+    let (checkpoint, description, path) = choose_checkpoint(explicit, dir)?;
+    if crate::fit::PeriodicNet::is_in(&checkpoint) {
+        return Ok(ModelFile::Tile {
+            checkpoint,
+            description,
+        });
+    }
+    generator_model(&checkpoint, description, path.as_deref()).map(ModelFile::Generator)
+}
+
+/// Loads `--model`, else the most recent model in `dir`, else the shipped honeycomb: a
+/// generator (a fitted tile is refused with a line saying what paints it).
 pub fn choose_model(explicit: Option<&Path>, dir: &Path) -> Result<ChosenModel> {
     let (checkpoint, description, path) = choose_checkpoint(explicit, dir)?;
     if crate::fit::PeriodicNet::is_in(&checkpoint) {
@@ -77,9 +102,17 @@ pub fn choose_model(explicit: Option<&Path>, dir: &Path) -> Result<ChosenModel> 
             path.as_deref().unwrap_or(Path::new("TILE")).display()
         ));
     }
-    let explicit = path.as_deref();
-    let (config, weights) = GeneratorWeights::read_from(&checkpoint)?;
-    let maps = MapSet::read_from(&checkpoint, explicit.unwrap_or(Path::new("model")))?;
+    generator_model(&checkpoint, description, path.as_deref())
+}
+
+/// The generator in `checkpoint`, with its map list where it has one.
+fn generator_model(
+    checkpoint: &Checkpoint,
+    description: String,
+    explicit: Option<&Path>,
+) -> Result<ChosenModel> {
+    let (config, weights) = GeneratorWeights::read_from(checkpoint)?;
+    let maps = MapSet::read_from(checkpoint, explicit.unwrap_or(Path::new("model")))?;
     if let Some(set) = &maps
         && set.channels() != config.channels
     {

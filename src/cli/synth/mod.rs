@@ -15,7 +15,7 @@ use crate::generator::{GeneratorConfig, GeneratorWeights};
 use crate::input_error;
 use crate::io::OutputFormat;
 use crate::maps::MapOutput;
-use crate::model::{choose_checkpoint, choose_model};
+use crate::model::{ModelFile, choose_model, load_model};
 use crate::synth::{DEFAULT_BAND_PIXELS, Synth};
 
 #[derive(Debug, Args)]
@@ -236,18 +236,22 @@ fn synth_image(args: &SynthArgs, device: DeviceChoice, [height, width]: [usize; 
             "--bits {bits}: PNG output is 8 or 16 bits per channel"
         ));
     }
-    let (checkpoint, description, _) = choose_checkpoint(args.model.as_deref(), Path::new("."))?;
-    if crate::fit::PeriodicNet::is_in(&checkpoint) {
-        return tile::synth_tile(args, device, &checkpoint, &description);
-    }
+    // The model file is read once, and its kind decides what paints it.
+    let model = match load_model(args.model.as_deref(), Path::new("."))? {
+        ModelFile::Tile {
+            checkpoint,
+            description,
+        } => return tile::synth_tile(args, device, &checkpoint, &description),
+        ModelFile::Generator(model) => model,
+    };
     if args.lod.is_some() {
         return Err(input_error!(
-            "--lod is for tiles fitted by `ipfn fit`; {description} is a generator"
+            "--lod is for tiles fitted by `ipfn fit`; {} is a generator",
+            model.description
         ));
     }
     let format = OutputFormat::from_path(&args.out, args.bits.unwrap_or(8))?;
     crate::io::check_destination(&args.out)?;
-    let model = choose_model(args.model.as_deref(), Path::new("."))?;
     let outputs = match &model.maps {
         Some(set) => set.outputs(&args.out, args.bits)?,
         None => vec![MapOutput {
