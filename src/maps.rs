@@ -153,7 +153,7 @@ pub fn renormalise(values: &mut [f32], channels: usize) {
 pub struct MapFiles {
     pub files: Vec<PathBuf>,
     pub normal: Vec<bool>,
-    /// Resample maps to the first map's size (and read any bit depth) instead of refusing them.
+    /// Resample maps to the first map's size instead of refusing them.
     pub resample: bool,
 }
 
@@ -202,15 +202,17 @@ impl MapFiles {
         })
     }
 
-    /// Reads the maps, checks that they agree in size and bit depth (or resamples them to the
-    /// first map's size when `resample` is set), and stacks their channels.
+    /// Reads the maps, each at its own bit depth, checks that they agree in size (or resamples
+    /// them to the first map's size when `resample` is set), and stacks their channels.
     pub fn load(&self) -> Result<(Exemplar, MapSet)> {
         let mut maps = Vec::new();
         let mut images: Vec<Exemplar> = Vec::new();
         for (file, &normal) in self.files.iter().zip(&self.normal) {
             let (mut image, bits) = crate::exemplar::read_exemplar_with_bits(file)?;
             if let Some(first) = images.first() {
-                let (w, h, b) = (first.width, first.height, maps_bits(&maps));
+                // Each map keeps its own bit depth (a published set mixes 8-bit colour with
+                // 16-bit normals and heights), and is painted back at it.
+                let (w, h) = (first.width, first.height);
                 if (image.width, image.height) != (w, h) {
                     if !self.resample {
                         return Err(input_error!(
@@ -222,13 +224,6 @@ impl MapFiles {
                         ));
                     }
                     image = image.resized(w, h);
-                }
-                if bits != b && !self.resample {
-                    return Err(input_error!(
-                        "{}: {bits}-bit, but {} is {b}-bit; maps must have one bit depth (or pass --resize-maps to accept mixed depths)",
-                        file.display(),
-                        self.files[0].display()
-                    ));
                 }
             }
             if normal && image.channels < 3 {
@@ -257,10 +252,6 @@ impl MapFiles {
             self.files.len() - 1
         )
     }
-}
-
-fn maps_bits(maps: &[MapInfo]) -> u8 {
-    maps.first().map_or(8, |m| m.bits)
 }
 
 fn stem(path: &Path) -> String {

@@ -29,6 +29,10 @@ pub struct FitArgs {
     /// Which maps are normal maps, by file stem (default: names containing "normal").
     #[arg(long, value_delimiter = ',', value_name = "NAMES", requires = "maps")]
     pub normal_maps: Option<Vec<String>>,
+    /// Resample maps of another size to the first map's size (maps of mixed bit depths are
+    /// read as they are, without it).
+    #[arg(long, requires = "maps")]
+    pub resize_maps: bool,
     /// A mask of the photo's size: dark pixels (at or below half gray) are left out of the fit
     /// and filled in by the periodic structure.
     #[arg(long, value_name = "PATH")]
@@ -105,7 +109,7 @@ impl FitArgs {
             c.maps = Some(MapFiles::new(
                 files.clone(),
                 self.normal_maps.as_deref(),
-                false,
+                self.resize_maps,
             )?);
         }
         macro_rules! set {

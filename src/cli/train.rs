@@ -33,9 +33,9 @@ pub struct TrainArgs {
     /// before latest.ipfn), for when latest.ipfn is damaged.
     #[arg(long, requires = "resume")]
     pub from_previous: bool,
-    /// A material map set instead of one image: aligned maps of one size and bit depth
-    /// (albedo.png,normal.png,roughness.png,height.png), learned together; synth writes one
-    /// file per map, named after these files.
+    /// A material map set instead of one image: aligned maps of one size
+    /// (albedo.png,normal.png,roughness.png,height.png), each read and painted back at its own
+    /// bit depth, learned together; synth writes one file per map, named after these files.
     #[arg(
         long,
         value_delimiter = ',',
@@ -47,7 +47,8 @@ pub struct TrainArgs {
     /// Default: the maps whose name contains "normal"; pass "" for none.
     #[arg(long, value_delimiter = ',', value_name = "NAMES", requires = "maps")]
     pub normal_maps: Option<Vec<String>>,
-    /// Resample maps of another size to the first map's size, and accept mixed bit depths.
+    /// Resample maps of another size to the first map's size (maps of mixed bit depths are
+    /// read as they are, without it).
     #[arg(long, requires = "maps")]
     pub resize_maps: bool,
     /// Where to train: auto (the best present: cuda where it starts, else a wgpu GPU, else
