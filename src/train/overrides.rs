@@ -95,8 +95,7 @@ overrides! {
     /// 1 for an image with no clear period (the settings printed before training say so), else 0.
     diversity: f64, fixed;
     /// A coarse critic that judges crops painted at every N-th pixel of a crop N times wider,
-    /// so it sees several of the pattern's periods; 0: the fine critic alone. Default: from the
-    /// exemplar's period (the settings printed before training say so).
+    /// so it sees several of the pattern's periods; 0 (the default): the fine critic alone.
     coarse_stride: usize, fixed;
     /// Seed of every random draw.
     seed: u64, fixed;
