@@ -290,3 +290,44 @@ pub fn check_outputs(outputs: &[MapOutput], width: usize, height: usize) -> Resu
     }
     Ok(())
 }
+
+/// Renders a `[height, width]` image in row bands of about `band_pixels` pixels and hands each
+/// output its part of every band, in order: `render(row, rows)` gives a band's stacked pixels
+/// (`channels` values each), `sink(output, values)` takes one output's values (clamped to
+/// [-1, 1] when `clamp`, normal maps renormalised), and `progress(rows_done)` follows each band.
+/// Files and arrays are filled by this one loop, so they hold the same values.
+#[allow(clippy::too_many_arguments)]
+pub fn for_each_band(
+    outputs: &[MapOutput],
+    channels: usize,
+    [height, width]: [usize; 2],
+    band_pixels: usize,
+    clamp: bool,
+    render: impl Fn(usize, usize) -> Vec<f32>,
+    mut sink: impl FnMut(usize, Vec<f32>) -> Result<()>,
+    mut progress: impl FnMut(usize),
+) -> Result<()> {
+    let band_rows = (band_pixels / width.max(1)).clamp(1, height.max(1));
+    let mut row = 0;
+    while row < height {
+        let rows = band_rows.min(height - row);
+        let band = render(row, rows);
+        for (i, o) in outputs.iter().enumerate() {
+            let mut map: Vec<f32> = if o.channels == (0..channels) && !clamp {
+                band.clone()
+            } else {
+                band.chunks_exact(channels)
+                    .flat_map(|px| px[o.channels.clone()].iter())
+                    .map(|&v| if clamp { v.clamp(-1.0, 1.0) } else { v })
+                    .collect()
+            };
+            if o.normal {
+                renormalise(&mut map, o.channels.len());
+            }
+            sink(i, map)?;
+        }
+        row += rows;
+        progress(row);
+    }
+    Ok(())
+}

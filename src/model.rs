@@ -76,7 +76,36 @@ pub enum ModelFile {
     Tile {
         checkpoint: Checkpoint,
         description: String,
+        path: Option<PathBuf>,
     },
+}
+
+impl ModelFile {
+    /// The generator, or an error saying a fitted tile paints only images.
+    pub fn generator(&self) -> Result<&ChosenModel> {
+        match self {
+            ModelFile::Generator(model) => Ok(model),
+            ModelFile::Tile {
+                description, path, ..
+            } => Err(not_a_generator(description, path.as_deref())),
+        }
+    }
+
+    /// Where the model came from, as commands print it.
+    pub fn description(&self) -> &str {
+        match self {
+            ModelFile::Generator(model) => &model.description,
+            ModelFile::Tile { description, .. } => description,
+        }
+    }
+}
+
+/// The error for a fitted tile given where only a generator paints.
+fn not_a_generator(description: &str, path: Option<&Path>) -> crate::Error {
+    input_error!(
+        "{description}: a tile fitted by `ipfn fit`, not a generator; `ipfn synth --model {}` paints it as an image (no volumes, guides, mirrors or Zarr stores)",
+        path.unwrap_or(Path::new("TILE")).display()
+    )
 }
 
 /// Reads `--model`, else the most recent model in `dir`, else the shipped honeycomb, whichever
@@ -87,6 +116,7 @@ pub fn load_model(explicit: Option<&Path>, dir: &Path) -> Result<ModelFile> {
         return Ok(ModelFile::Tile {
             checkpoint,
             description,
+            path,
         });
     }
     generator_model(&checkpoint, description, path.as_deref()).map(ModelFile::Generator)
@@ -97,10 +127,7 @@ pub fn load_model(explicit: Option<&Path>, dir: &Path) -> Result<ModelFile> {
 pub fn choose_model(explicit: Option<&Path>, dir: &Path) -> Result<ChosenModel> {
     let (checkpoint, description, path) = choose_checkpoint(explicit, dir)?;
     if crate::fit::PeriodicNet::is_in(&checkpoint) {
-        return Err(input_error!(
-            "{description}: a tile fitted by `ipfn fit`, not a generator; `ipfn synth --model {}` paints it as an image (no volumes, guides, mirrors or Zarr stores)",
-            path.as_deref().unwrap_or(Path::new("TILE")).display()
-        ));
+        return Err(not_a_generator(&description, path.as_deref()));
     }
     generator_model(&checkpoint, description, path.as_deref())
 }

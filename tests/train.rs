@@ -472,6 +472,68 @@ fn coarse_real_crops_are_strided_reads_of_the_exemplar() {
     assert!((0..4).any(|i| !read_at(&coarse, i, 1)));
 }
 
+/// Coarse to fine: for the first `coarse_until` of the run the one critic's real crops are the
+/// exemplar read every `coarse_stride`-th pixel, then plain crops; no second critic is made.
+#[test]
+fn coarse_to_fine_reads_strided_crops_then_plain_ones() {
+    let dir = common::tiny_run_folder();
+    let exemplar = ipfn::exemplar::read_exemplar(&dir.path().join("ex.png")).unwrap();
+    let config = TrainConfig {
+        coarse_stride: 3,
+        coarse_until: 0.5,
+        iterations: 4,
+        ..tiny_network(4)
+    };
+    let run = dir.path().join("run");
+    let mut trainer =
+        Trainer::new(config, dir.path().join("ex.png"), &run, &Device::flex()).unwrap();
+    assert!(trainer.coarse_critic().is_none(), "one critic");
+    let (s, c, w) = (16, exemplar.channels, exemplar.width);
+    let read_at = |batch: &[f32], i: usize, stride: usize| {
+        let span = (s - 1) * stride + 1;
+        let origins =
+            (0..=exemplar.height - span).flat_map(|y| (0..=w - span).map(move |x| (y, x)));
+        origins.into_iter().any(|(y, x)| {
+            (0..s * s).all(|q| {
+                let (r, col) = (y + q / s * stride, x + q % s * stride);
+                (0..c).all(|ch| {
+                    batch[(i * c + ch) * s * s + q] == exemplar.values[(r * w + col) * c + ch]
+                })
+            })
+        })
+    };
+    let host = |t: Tensor<5>| t.try_into_vec_as::<f32>().unwrap();
+    let before = host(trainer.real_batch(&[0, 1], Scale::Fine));
+    trainer.step();
+    trainer.step();
+    let after = host(trainer.real_batch(&[0, 1], Scale::Fine));
+    for i in 0..4 {
+        assert!(
+            read_at(&before, i, 3),
+            "crop {i} of the coarse part is not a stride-3 read"
+        );
+        assert!(
+            read_at(&after, i, 1),
+            "crop {i} of the fine part is not a plain crop"
+        );
+    }
+    assert!((0..4).any(|i| !read_at(&before, i, 1)));
+}
+
+/// A coarse-to-fine run resumes bit for bit (its switch, at iteration 1, falls before the
+/// resume at 2).
+#[test]
+fn resume_with_coarse_to_fine_continues_bit_exactly() {
+    let d = resume_is_bit_exact(&["--coarse-stride", "2", "--coarse-until", "0.25"]);
+    let state = Checkpoint::load(&d.path().join("runs/two/latest.ipfn")).unwrap();
+    assert!(
+        !state
+            .tensors
+            .keys()
+            .any(|k| k.starts_with("coarse_critic."))
+    );
+}
+
 /// A run with the coarse critic resumes bit for bit, its critic and optimiser saved.
 #[test]
 fn resume_with_the_coarse_critic_continues_bit_exactly() {

@@ -101,30 +101,22 @@ impl TilePainter {
         [height, width]: [usize; 2],
         band_pixels: usize,
     ) -> Result<()> {
-        let c = self.net.shape.channels;
         let mut writers = outputs
             .iter()
             .map(|o| {
                 crate::io::ImageWriter::create(&o.path, o.format, width, height, o.channels.len())
             })
             .collect::<Result<Vec<_>>>()?;
-        let band_rows = (band_pixels / width.max(1)).clamp(1, height.max(1));
-        let mut row = 0;
-        while row < height {
-            let rows = band_rows.min(height - row);
-            let band = self.render([origin[0] + row as i64, origin[1]], [rows, width]);
-            for (o, writer) in outputs.iter().zip(writers.iter_mut()) {
-                let mut map: Vec<f32> = band
-                    .chunks_exact(c)
-                    .flat_map(|px| px[o.channels.clone()].iter().map(|v| v.clamp(-1.0, 1.0)))
-                    .collect();
-                if o.normal {
-                    crate::maps::renormalise(&mut map, o.channels.len());
-                }
-                writer.write_rows(&map)?;
-            }
-            row += rows;
-        }
+        crate::maps::for_each_band(
+            outputs,
+            self.net.shape.channels,
+            [height, width],
+            band_pixels,
+            true,
+            |row, rows| self.render([origin[0] + row as i64, origin[1]], [rows, width]),
+            |i, map| writers[i].write_rows(&map),
+            |_| {},
+        )?;
         writers.into_iter().try_for_each(|w| w.finish())
     }
 }

@@ -212,40 +212,25 @@ impl Painter {
         outputs: &[MapOutput],
         [height, width]: [usize; 2],
         band_pixels: usize,
-        mut progress: impl FnMut(usize),
+        progress: impl FnMut(usize),
     ) -> Result<()> {
-        let c = self.channels;
         let mut writers = outputs
             .iter()
             .map(|o| {
                 crate::io::ImageWriter::create(&o.path, o.format, width, height, o.channels.len())
             })
             .collect::<Result<Vec<_>>>()?;
-        let band_rows = (band_pixels / width.max(1)).clamp(1, height);
-        let mut row = 0;
-        while row < height {
-            let rows = band_rows.min(height - row);
-            let band = self.render(&[row as i64, 0], &[rows, width]);
-            for (o, writer) in outputs.iter().zip(writers.iter_mut()) {
-                let mut map: Vec<f32> = if o.channels == (0..c) {
-                    band.clone()
-                } else {
-                    band.chunks_exact(c)
-                        .flat_map(|px| px[o.channels.clone()].iter().copied())
-                        .collect()
-                };
-                if o.normal {
-                    crate::maps::renormalise(&mut map, o.channels.len());
-                }
-                writer.write_rows(&map)?;
-            }
-            row += rows;
-            progress(row);
-        }
-        for writer in writers {
-            writer.finish()?;
-        }
-        Ok(())
+        crate::maps::for_each_band(
+            outputs,
+            self.channels,
+            [height, width],
+            band_pixels,
+            false,
+            |row, rows| self.render(&[row as i64, 0], &[rows, width]),
+            |i, map| writers[i].write_rows(&map),
+            progress,
+        )?;
+        writers.into_iter().try_for_each(|w| w.finish())
     }
 
     /// Renders the chunks of `writer`'s array that `shard` owns, each as one box, and writes

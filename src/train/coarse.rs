@@ -61,6 +61,12 @@ impl Scale {
     }
 }
 
+/// Whether a run with `config` trains a second, coarse critic: a coarse stride without a
+/// coarse-to-fine schedule (with one, the one critic judges both in turn).
+pub(super) fn has_coarse_critic(config: &super::TrainConfig) -> bool {
+    config.coarse_stride > 0 && config.coarse_until == 0.0
+}
+
 /// The coarse critic and its optimiser, as a run keeps them.
 pub(super) struct CoarseCritic {
     pub critic: Critic,
@@ -79,9 +85,18 @@ impl Trainer {
     /// Pixels between two points of a crop at `scale`.
     pub(super) fn stride(&self, scale: Scale) -> usize {
         match scale {
+            Scale::Fine if self.in_coarse_phase() => self.config.coarse_stride,
             Scale::Fine => 1,
             Scale::Coarse => self.config.coarse_stride.max(1),
         }
+    }
+
+    /// Whether the iteration about to run is in the coarse part of a coarse-to-fine schedule
+    /// (`coarse_until`), where the one critic judges strided crops. A time budget's plan
+    /// moves the switch with the planned total.
+    pub(super) fn in_coarse_phase(&self) -> bool {
+        self.config.coarse_until > 0.0
+            && (self.iteration as f64) < self.config.coarse_until * self.config.iterations as f64
     }
 
     /// The scales whose critics this run trains: the fine one, and the coarse one when

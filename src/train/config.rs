@@ -48,6 +48,12 @@ pub struct TrainConfig {
     /// arrangement over several periods; 0 (the paper) trains the fine critic alone.
     #[serde(skip_serializing_if = "is_zero_usize")]
     pub coarse_stride: usize,
+    /// Coarse to fine: for this first fraction of the run's iterations the one critic judges
+    /// crops painted every `coarse_stride`-th pixel (the arrangement over several periods),
+    /// then the fine crops (the detail); no second critic. 0: no schedule (with
+    /// `coarse_stride`, the two critics side by side).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub coarse_until: f64,
     pub beta1: f64,
     pub beta2: f64,
     /// Weight of the gradient penalty.
@@ -154,6 +160,7 @@ impl Default for TrainConfig {
             k_lr: 1.0,
             diversity: 0.0,
             coarse_stride: 0,
+            coarse_until: 0.0,
             beta1: 0.5,
             beta2: 0.9,
             gp_lambda: 10.0,
@@ -402,6 +409,18 @@ impl TrainConfig {
             return Err(input_error!(
                 "diversity = {}: the diversity hinge's weight is finite and not negative, e.g. 1",
                 self.diversity
+            ));
+        }
+        if !(0.0..1.0).contains(&self.coarse_until) {
+            return Err(input_error!(
+                "coarse_until = {}: the coarse part of the run is a fraction from 0 (none) to below 1, e.g. 0.5",
+                self.coarse_until
+            ));
+        }
+        if self.coarse_until > 0.0 && self.coarse_stride < 2 {
+            return Err(input_error!(
+                "coarse_until = {} needs the stride of the coarse crops: give coarse_stride (--coarse-stride N, 2 or more)",
+                self.coarse_until
             ));
         }
         if !(0.0..1.0).contains(&self.average) {

@@ -123,7 +123,7 @@ impl Trainer {
             stream::INIT_CRITIC,
         );
         let average = (config.average > 0.0).then(|| generator.weights());
-        let coarse = (config.coarse_stride > 0).then(|| coarse::CoarseCritic {
+        let coarse = coarse::has_coarse_critic(&config).then(|| coarse::CoarseCritic {
             critic: initialise(
                 config.critic_config(&kind, channels).init(&device),
                 config.seed,
@@ -296,7 +296,7 @@ impl Trainer {
         adam_generator.read_from("adam.generator", &ckpt, &device)?;
         let mut adam_critic = Adam::new(config.lr, config.beta1, config.beta2);
         adam_critic.read_from("adam.critic", &ckpt, &device)?;
-        let coarse = if config.coarse_stride > 0 {
+        let coarse = if coarse::has_coarse_critic(&config) {
             let critic = checkpoint::read_module(
                 config.critic_config(&kind, exemplar.channels).init(&device),
                 run::COARSE_CRITIC_PREFIX,

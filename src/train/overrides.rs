@@ -97,6 +97,9 @@ overrides! {
     /// A coarse critic that judges crops painted at every N-th pixel of a crop N times wider,
     /// so it sees several of the pattern's periods; 0 (the default): the fine critic alone.
     coarse_stride: usize, fixed;
+    /// Coarse to fine: the first fraction F of the run (e.g. 0.5) trains the one critic on
+    /// crops every --coarse-stride-th pixel, the rest on fine crops; 0: no schedule.
+    coarse_until: f64, fixed;
     /// Seed of every random draw.
     seed: u64, fixed;
     /// Scale the exemplar first (Lanczos-3, anti-aliased), e.g. 0.5.

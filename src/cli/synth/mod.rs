@@ -1,6 +1,6 @@
-//! `ipfn synth`: images, map sets, tiles, volumes, meshes and slices.
+//! `ipfn synth`: the flags, mapped onto [`crate::synth::request::SynthRequest`], which decides
+//! what they paint; this file parses and prints.
 
-mod tile;
 mod zarr;
 
 use std::io::IsTerminal;
@@ -9,14 +9,10 @@ use std::time::Instant;
 
 use clap::Args;
 
-use crate::device::DeviceChoice;
 use crate::error::Result;
-use crate::generator::{GeneratorConfig, GeneratorWeights};
-use crate::input_error;
-use crate::io::OutputFormat;
-use crate::maps::MapOutput;
-use crate::model::{ModelFile, choose_model, load_model};
-use crate::synth::{DEFAULT_BAND_PIXELS, Synth};
+use crate::model::load_model;
+pub use crate::synth::request::Size;
+use crate::synth::request::{SynthRequest, ZarrOptions};
 
 #[derive(Debug, Args)]
 pub struct SynthArgs {
@@ -85,9 +81,6 @@ pub struct SynthArgs {
     /// for a volume.
     #[arg(long = "out", short = 'o', value_name = "PATH")]
     pub out_path: Option<PathBuf>,
-    /// `--out`, or the default for what is painted (set by `synth`).
-    #[arg(skip)]
-    pub out: PathBuf,
     /// Bits per channel for PNG output: 8 or 16. Default 8; a map set's maps keep their
     /// inputs' depth. For .zarr: 8 or 16 store unsigned integers, as PNG; default float32.
     #[arg(long)]
@@ -121,14 +114,6 @@ pub struct SynthArgs {
     /// Print nothing but errors.
     #[arg(long, short)]
     pub quiet: bool,
-}
-
-/// `--size`: a width, height and optional depth.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Size {
-    pub width: usize,
-    pub height: usize,
-    pub depth: Option<usize>,
 }
 
 fn parse_size(s: &str) -> std::result::Result<Size, String> {
@@ -197,83 +182,63 @@ fn parse_offset(s: &str) -> std::result::Result<(i64, i64), String> {
     Ok((parse(x)?, parse(y)?))
 }
 
-pub(super) fn synth(mut args: SynthArgs) -> Result<()> {
-    let device: DeviceChoice = args.device.parse()?;
-    device.burn_device()?; // a missing GPU or driver fails here, before any work
-    let width = args.width.or(args.size.map(|s| s.width)).unwrap_or(512);
-    let height = args.height.or(args.size.map(|s| s.height)).unwrap_or(512);
-    if width == 0 || height == 0 {
-        return Err(input_error!(
-            "size {width}x{height}: width and height must be at least 1"
-        ));
-    }
-    let depth = args.depth.or(args.size.and_then(|s| s.depth));
-    let volume = depth.is_some() && args.slice.is_none();
-    args.out = args
-        .out_path
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(if volume { "synth.npy" } else { "synth.png" }));
-    if crate::io::extension(&args.out) == "zarr" {
-        return zarr::synth_zarr(&args, device, [height, width], depth);
-    }
-    if args.shard.is_some() || args.shard_from_env.is_some() || args.chunk.is_some() {
-        return Err(input_error!(
-            "--shard, --shard-from-env and --chunk are for Zarr stores: give --out NAME.zarr"
-        ));
-    }
-    match (args.slice, depth) {
-        (Some(slice), _) => synth_slice(&args, [depth.unwrap_or(width), height, width], slice),
-        (None, Some(depth)) => synth_volume(&args, width, height, depth),
-        (None, None) => synth_image(&args, device, [height, width]),
+impl SynthArgs {
+    /// The library request these flags ask for.
+    pub fn request(&self) -> Result<SynthRequest> {
+        Ok(SynthRequest {
+            size: self.size,
+            width: self.width,
+            height: self.height,
+            depth: self.depth,
+            slice: self.slice,
+            solid: self.solid,
+            mesh: self.mesh.clone(),
+            density: self.density,
+            seed: self.seed,
+            zoom: self.zoom,
+            offset: self.offset,
+            tile: self.tile,
+            mirror: self.mirror,
+            noise_scale: self.noise_scale,
+            guide: self.guide.clone(),
+            out: self.out_path.clone(),
+            bits: self.bits,
+            zarr: ZarrOptions {
+                chunk: self.chunk,
+                shard: self.shard,
+                shard_from_env: self.shard_from_env.clone(),
+                shards: self.shards,
+            },
+            device: self.device.parse()?,
+            lod: self.lod,
+            gpu_kernel: gpu_kernel_from_env(),
+        })
     }
 }
 
-/// `ipfn synth` of an image (or a map set) from a 2D model, streamed to disk in row bands.
-fn synth_image(args: &SynthArgs, device: DeviceChoice, [height, width]: [usize; 2]) -> Result<()> {
-    check_image_flags(args)?;
-    if let Some(bits) = args.bits.filter(|b| *b != 8 && *b != 16) {
-        return Err(input_error!(
-            "--bits {bits}: PNG output is 8 or 16 bits per channel"
-        ));
+/// `IPFN_GPU_KERNEL=0` paints on a GPU with burn's generator instead of ipfn's kernel (to
+/// compare the two, as `benches/gpu.sh` does).
+fn gpu_kernel_from_env() -> bool {
+    std::env::var("IPFN_GPU_KERNEL").map_or(true, |v| v != "0")
+}
+
+pub(super) fn synth(args: SynthArgs) -> Result<()> {
+    let request = args.request()?;
+    let model = load_model(args.model.as_deref(), Path::new("."))?;
+    if request.is_zarr() {
+        return zarr::synth_zarr(&args, &request, &model);
     }
-    // The model file is read once, and its kind decides what paints it.
-    let model = match load_model(args.model.as_deref(), Path::new("."))? {
-        ModelFile::Tile {
-            checkpoint,
-            description,
-        } => return tile::synth_tile(args, device, &checkpoint, &description),
-        ModelFile::Generator(model) => model,
-    };
-    if args.lod.is_some() {
-        return Err(input_error!(
-            "--lod is for tiles fitted by `ipfn fit`; {} is a generator",
-            model.description
-        ));
-    }
-    let format = OutputFormat::from_path(&args.out, args.bits.unwrap_or(8))?;
-    crate::io::check_destination(&args.out)?;
-    let outputs = match &model.maps {
-        Some(set) => set.outputs(&args.out, args.bits)?,
-        None => vec![MapOutput {
-            path: args.out.clone(),
-            format,
-            channels: 0..model.config.channels,
-            normal: false,
-        }],
-    };
-    crate::maps::check_outputs(&outputs, width, height)?;
-    let painter =
-        image_synth(args, device, model.config, model.weights, [height, width])?.painter()?;
-    painter.check_axes(2)?;
+    let plan = request.plan(&model)?;
+    plan.check_destinations()?;
     let say = |s: String| {
         if !args.quiet {
             eprintln!("{s}");
         }
     };
-    say_model(&say, &model.description, &painter);
+    plan.header().into_iter().for_each(say);
     let start = Instant::now();
-    let bar = row_bar(!args.quiet && width * height >= 1 << 22, height);
-    painter.write_maps(&outputs, [height, width], DEFAULT_BAND_PIXELS, |rows| {
+    let bar = row_bar(!args.quiet && plan.pixels() >= 1 << 22, plan.rows());
+    let wrote = plan.write(|rows| {
         if let Some(bar) = &bar {
             bar.set_position(rows as u64);
         }
@@ -281,81 +246,13 @@ fn synth_image(args: &SynthArgs, device: DeviceChoice, [height, width]: [usize; 
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
-    let written: Vec<String> = outputs
-        .iter()
-        .map(|o| o.path.display().to_string())
-        .collect();
-    say(format!(
-        "wrote {} ({width}x{height}, seed {}, {device:?}) in {:.2} s",
-        written.join(", "),
-        args.seed,
-        start.elapsed().as_secs_f64()
-    ));
+    say(format!("{wrote} in {:.2} s", start.elapsed().as_secs_f64()));
     Ok(())
-}
-
-/// Says which model paints and, for a tile, how far K moved.
-fn say_model(say: &impl Fn(String), model: &str, painter: &crate::synth::Painter) {
-    say(format!("model: {model}"));
-    if let Some(t) = painter.tile_adjustment() {
-        say(t.describe());
-    }
-}
-
-/// An error for the flags that only volumes take, given for an image.
-fn check_image_flags(args: &SynthArgs) -> Result<()> {
-    let volume_only = [
-        (
-            args.mesh.is_some(),
-            "--mesh needs a volume: give --size WxHxD or --depth with a 3D model",
-        ),
-        (
-            args.solid,
-            "--solid paints a volume or a plane: give --size WxHxD, --depth or --slice",
-        ),
-        (
-            args.density.is_some(),
-            "--density is for volume models: give --size WxHxD, --depth or --slice",
-        ),
-    ];
-    if let Some((_, message)) = volume_only.iter().find(|(given, _)| *given) {
-        return Err(input_error!("{message}"));
-    }
-    Ok(())
-}
-
-/// The `Synth` of a 2D model with the image flags: seed, zoom, offset, noise scale, device,
-/// tile, mirror and guide.
-fn image_synth(
-    args: &SynthArgs,
-    device: DeviceChoice,
-    config: GeneratorConfig,
-    weights: GeneratorWeights,
-    [height, width]: [usize; 2],
-) -> Result<Synth> {
-    let (x, y) = args.offset.unwrap_or((0, 0));
-    let mut builder = Synth::new(config, weights)
-        .seed(args.seed)
-        .zoom(args.zoom)
-        .offset(&[y, x])
-        .noise_scale(args.noise_scale)
-        .device(device)
-        .gpu_kernel(gpu_kernel_from_env());
-    if args.tile {
-        builder = builder.tile(&[height, width]);
-    }
-    if args.mirror {
-        builder = builder.mirror([height, width]);
-    }
-    if let Some(g) = &args.guide {
-        builder = builder.guide(crate::condition::Guide::parse_flag(g)?, [height, width]);
-    }
-    Ok(builder)
 }
 
 /// A progress bar over `rows` rows, on a terminal when `show`.
 fn row_bar(show: bool, rows: usize) -> Option<indicatif::ProgressBar> {
-    (show && std::io::stderr().is_terminal()).then(|| {
+    (show && rows > 0 && std::io::stderr().is_terminal()).then(|| {
         let bar = indicatif::ProgressBar::new(rows as u64);
         bar.set_style(
             indicatif::ProgressStyle::with_template(
@@ -365,185 +262,4 @@ fn row_bar(show: bool, rows: usize) -> Option<indicatif::ProgressBar> {
         );
         bar
     })
-}
-
-/// `ipfn synth --slice AXIS=I`: one plane of a 3D model's `depth x height x width` volume as
-/// an image.
-fn synth_slice(
-    args: &SynthArgs,
-    [depth, height, width]: [usize; 3],
-    slice: (char, usize),
-) -> Result<()> {
-    if depth == 0 {
-        return Err(input_error!("--depth 0: must be at least 1"));
-    }
-    if args.mirror || args.guide.is_some() || args.tile || args.mesh.is_some() {
-        return Err(input_error!(
-            "--slice writes one plane: --tile, --mirror, --guide and --mesh do not apply"
-        ));
-    }
-    if args.offset.is_some() {
-        return Err(input_error!(
-            "--slice: the plane is placed by AXIS=INDEX in the volume; --offset does not apply"
-        ));
-    }
-    let (axis, index) = slice;
-    // The plane's origin in the volume and its box (one voxel thick across `axis`).
-    let (origin, [d, h, w], extent) = match axis {
-        'z' => ([index as i64, 0, 0], [1, height, width], depth),
-        'y' => ([0, index as i64, 0], [depth, 1, width], height),
-        _ => ([0, 0, index as i64], [depth, height, 1], width),
-    };
-    if index >= extent {
-        return Err(input_error!(
-            "--slice {axis}={index}: the volume has {extent} voxels along {axis} (indices 0 to {})",
-            extent - 1
-        ));
-    }
-    // The image: rows and columns are the two other axes in (z, y, x) order.
-    let (rows, cols) = match axis {
-        'z' => (height, width),
-        'y' => (depth, width),
-        _ => (depth, height),
-    };
-    let format = OutputFormat::from_path(&args.out, args.bits.unwrap_or(8))?;
-    crate::io::check_destination(&args.out)?;
-    let model = choose_model(args.model.as_deref(), Path::new("."))?;
-    if model.config.dims != 3 {
-        return Err(input_error!(
-            "--slice: this model has {} coordinate axes; slices need a 3D model (train --solid, or a volume)",
-            model.config.dims
-        ));
-    }
-    format.check_size(&args.out, cols, rows, model.config.channels)?;
-    let start = Instant::now();
-    let painter = volume_synth(args, model.config, model.weights, width)?.painter()?;
-    painter.check_axes(3)?;
-    let values = painter.render(&origin, &[d, h, w]);
-    let mut writer =
-        crate::io::ImageWriter::create(&args.out, format, cols, rows, painter.channels())?;
-    writer.write_rows(&values)?;
-    writer.finish()?;
-    if !args.quiet {
-        eprintln!(
-            "model: {}\nwrote {} (slice {axis}={index} of {width}x{height}x{depth}: {cols}x{rows}, seed {}) in {:.2} s",
-            model.description,
-            args.out.display(),
-            args.seed,
-            start.elapsed().as_secs_f64()
-        );
-    }
-    Ok(())
-}
-
-/// The `Synth` of a 3D model with the flags volumes and slices share: seed, zoom, noise scale,
-/// device and a density ramp along columns `0..width`.
-/// `IPFN_GPU_KERNEL=0` paints on a GPU with burn's generator instead of ipfn's kernel (to
-/// compare the two, as `benches/gpu.sh` does).
-fn gpu_kernel_from_env() -> bool {
-    std::env::var("IPFN_GPU_KERNEL").map_or(true, |v| v != "0")
-}
-
-fn volume_synth(
-    args: &SynthArgs,
-    config: GeneratorConfig,
-    weights: GeneratorWeights,
-    width: usize,
-) -> Result<Synth> {
-    let mut builder = Synth::new(config, weights)
-        .seed(args.seed)
-        .zoom(args.zoom)
-        .noise_scale(args.noise_scale)
-        .device(args.device.parse()?)
-        .gpu_kernel(gpu_kernel_from_env());
-    if let Some((from, to)) = args.density {
-        builder = builder.density(crate::condition::DensityRamp { from, to, width });
-    }
-    Ok(builder)
-}
-
-/// An error for the flags that only images take, given for a volume.
-fn check_volume_flags(args: &SynthArgs) -> Result<()> {
-    if args.mirror || args.guide.is_some() {
-        return Err(input_error!(
-            "--mirror and --guide are for images; volumes do not support them yet"
-        ));
-    }
-    if args.offset.is_some() {
-        return Err(input_error!(
-            "--offset is for images; a volume starts at the origin"
-        ));
-    }
-    Ok(())
-}
-
-/// `ipfn synth --depth D`: a volume from a 3D model, streamed to .npy in slabs.
-fn synth_volume(args: &SynthArgs, width: usize, height: usize, depth: usize) -> Result<()> {
-    if depth == 0 {
-        return Err(input_error!("--depth 0: must be at least 1"));
-    }
-    check_volume_flags(args)?;
-    if args.bits.is_some() {
-        return Err(input_error!(
-            "--bits is for images and Zarr stores; a .npy or .raw volume is written as float32"
-        ));
-    }
-    let format = crate::io::VolumeFormat::from_path(&args.out)?;
-    crate::io::check_destination(&args.out)?;
-    let model = choose_model(args.model.as_deref(), Path::new("."))?;
-    crate::io::check_volume_size(&args.out, depth, height, width, model.config.channels)?;
-    let mut builder = volume_synth(args, model.config, model.weights, width)?;
-    if args.tile {
-        builder = builder.tile(&[depth, height, width]);
-    }
-    let painter = builder.painter()?;
-    painter.check_axes(3)?;
-    if let (Some(t), false) = (painter.tile_adjustment(), args.quiet) {
-        eprintln!("{}", t.describe());
-    }
-    if let Some(mesh) = &args.mesh {
-        crate::mesh::MeshFormat::from_path(mesh)?;
-        crate::io::check_destination(mesh)?;
-    }
-    let start = Instant::now();
-    let mut builder = args
-        .mesh
-        .as_ref()
-        .map(|_| crate::mesh::MeshBuilder::new(height, width));
-    painter.write_volume(
-        &args.out,
-        [depth, height, width],
-        DEFAULT_BAND_PIXELS,
-        builder.as_mut(),
-    )?;
-    if let (Some(path), Some(builder)) = (&args.mesh, builder) {
-        let mesh = builder.finish();
-        crate::mesh::write_mesh(&mesh, path)?;
-        if !args.quiet {
-            eprintln!(
-                "wrote {}: {} vertices, {} triangles",
-                path.display(),
-                mesh.positions.len(),
-                mesh.triangles.len()
-            );
-        }
-    }
-    if !args.quiet {
-        let layout = match format {
-            crate::io::VolumeFormat::Npy => String::new(),
-            crate::io::VolumeFormat::Raw => format!(
-                ", little-endian float32 [D, H, W, C] = [{depth}, {height}, {width}, {}], no header",
-                painter.channels()
-            ),
-        };
-        eprintln!(
-            "model: {}\nwrote {} ({width}x{height}x{depth} voxels, {} channels, seed {}{layout}) in {:.2} s",
-            model.description,
-            args.out.display(),
-            painter.channels(),
-            args.seed,
-            start.elapsed().as_secs_f64()
-        );
-    }
-    Ok(())
 }

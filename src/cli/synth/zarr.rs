@@ -1,18 +1,13 @@
 //! `ipfn synth --out NAME.zarr`: a chunked Zarr v3 store, whole or one shard of it.
 
 use std::io::IsTerminal;
-use std::path::Path;
 use std::time::Instant;
 
-use super::{
-    SynthArgs, check_image_flags, check_volume_flags, image_synth, say_model, volume_synth,
-};
-use crate::device::DeviceChoice;
+use super::SynthArgs;
 use crate::error::Result;
-use crate::input_error;
-use crate::io::shard::Shard;
-use crate::io::zarr::{DEFAULT_IMAGE_CHUNK, DEFAULT_VOLUME_CHUNK, ZarrType, ZarrWriter};
-use crate::model::choose_model;
+use crate::io::zarr::{ZarrType, ZarrWriter};
+use crate::model::ModelFile;
+use crate::synth::request::SynthRequest;
 
 /// The flags that make one worker differ from another of the same render; they are left out of
 /// the command stored with the array, so every shard writes the same metadata.
@@ -20,49 +15,24 @@ const WORKER_FLAGS: [&str; 5] = ["--shard", "--shard-from-env", "--shards", "--q
 
 pub(super) fn synth_zarr(
     args: &SynthArgs,
-    device: DeviceChoice,
-    [height, width]: [usize; 2],
-    depth: Option<usize>,
+    request: &SynthRequest,
+    model: &ModelFile,
 ) -> Result<()> {
-    if args.slice.is_some() || args.mesh.is_some() {
-        return Err(input_error!(
-            "{}: --slice and --mesh write an image or a mesh, not a Zarr store: drop them, or give a .png or .obj",
-            args.out.display()
-        ));
-    }
-    let shard = shard_of(args)?;
+    let out = request.out_path();
+    let (painter, shape, chunk) = request.zarr_painter(model)?;
+    let shard = request.zarr.shard(|name| std::env::var(name).ok())?;
     let kind = ZarrType::from_bits(args.bits)?;
-    let model = choose_model(args.model.as_deref(), Path::new("."))?;
-    if model.maps.is_some() {
-        return Err(input_error!(
-            "{}: a map set is written as one image per map; give a .png or .exr --out",
-            args.out.display()
-        ));
-    }
-    let (painter, shape, chunk) = zarr_painter(
-        args,
-        device,
-        model.config,
-        model.weights,
-        [height, width],
-        depth,
-    )?;
-    painter.check_axes(shape.len())?;
-    let attributes = attributes(args, &model.description, kind);
-    let writer = ZarrWriter::create(
-        &args.out,
-        &shape,
-        painter.channels(),
-        args.chunk.unwrap_or(chunk),
-        kind,
-        attributes,
-    )?;
+    let attributes = attributes(args, model.description(), kind);
+    let writer = ZarrWriter::create(&out, &shape, painter.channels(), chunk, kind, attributes)?;
     let say = |s: String| {
         if !args.quiet {
             eprintln!("{s}");
         }
     };
-    say_model(&say, &model.description, &painter);
+    say(format!("model: {}", model.description()));
+    if let Some(t) = painter.tile_adjustment() {
+        say(t.describe());
+    }
     let removed = writer.remove_stale_temporaries(|n| shard.owns(n));
     if removed > 0 {
         say(format!(
@@ -81,45 +51,15 @@ pub(super) fn synth_zarr(
         bar.finish_and_clear();
     }
     say(format!(
-        "wrote {} ({}): {}, seed {}, {device:?}, in {:.2} s",
-        args.out.display(),
+        "wrote {} ({}): {}, seed {}, {:?}, in {:.2} s",
+        out.display(),
         writer.describe(),
         report.describe(shard),
         args.seed,
+        request.device,
         start.elapsed().as_secs_f64()
     ));
     Ok(())
-}
-
-/// The painter of a 2D model (image flags) or a 3D one (volume flags), the box it paints and
-/// the default chunk side.
-fn zarr_painter(
-    args: &SynthArgs,
-    device: DeviceChoice,
-    config: crate::generator::GeneratorConfig,
-    weights: crate::generator::GeneratorWeights,
-    [height, width]: [usize; 2],
-    depth: Option<usize>,
-) -> Result<(crate::synth::Painter, Vec<usize>, usize)> {
-    Ok(match depth {
-        None => {
-            check_image_flags(args)?;
-            let synth = image_synth(args, device, config, weights, [height, width])?;
-            (synth.painter()?, vec![height, width], DEFAULT_IMAGE_CHUNK)
-        }
-        Some(depth) => {
-            check_volume_flags(args)?;
-            let mut synth = volume_synth(args, config, weights, width)?;
-            if args.tile {
-                synth = synth.tile(&[depth, height, width]);
-            }
-            (
-                synth.painter()?,
-                vec![depth, height, width],
-                DEFAULT_VOLUME_CHUNK,
-            )
-        }
-    })
 }
 
 /// A progress bar over chunks, on a terminal when `show`.
@@ -134,18 +74,6 @@ fn chunk_bar(show: bool) -> Option<indicatif::ProgressBar> {
         );
         bar
     })
-}
-
-/// The shard this worker renders: `--shard`, `--shard-from-env`, or the whole array.
-fn shard_of(args: &SynthArgs) -> Result<Shard> {
-    match (&args.shard, &args.shard_from_env) {
-        (Some(shard), _) => Ok(*shard),
-        (None, Some(var)) => {
-            let var = (!var.is_empty()).then_some(var.as_str());
-            Shard::from_env(var, args.shards, |name| std::env::var(name).ok())
-        }
-        (None, None) => Ok(Shard::ALL),
-    }
 }
 
 /// What the store records of the render: the model, the synth settings, what the values mean,

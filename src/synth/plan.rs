@@ -1,0 +1,314 @@
+//! A checked [`super::request::SynthRequest`]: what is painted, by which painter, into which
+//! files. [`SynthPlan::write`] paints into the files and [`SynthPlan::render`] into memory,
+//! through the same band loop ([`crate::maps::for_each_band`]), so both hold the same values.
+
+use std::path::{Path, PathBuf};
+
+use crate::device::DeviceChoice;
+use crate::error::Result;
+use crate::fit::TilePainter;
+use crate::io::{OutputFormat, VolumeFormat};
+use crate::maps::MapOutput;
+use crate::synth::{DEFAULT_BAND_PIXELS, Painter};
+
+/// A checked synthesis: what is painted, by what, into which files.
+pub struct SynthPlan {
+    /// Where the model came from, as commands print it.
+    pub model: String,
+    /// The output file (a map set writes one file per map beside it).
+    pub out: PathBuf,
+    pub seed: u64,
+    pub device: DeviceChoice,
+    pub(super) target: Target,
+}
+
+pub(super) enum Target {
+    Image {
+        painter: Painter,
+        size: [usize; 2],
+        outputs: Vec<MapOutput>,
+        names: Vec<String>,
+    },
+    Tile {
+        painter: TilePainter,
+        origin: [i64; 2],
+        size: [usize; 2],
+        outputs: Vec<MapOutput>,
+        names: Vec<String>,
+    },
+    Slice {
+        painter: Painter,
+        origin: [i64; 3],
+        shape: [usize; 3],
+        image: [usize; 2],
+        format: OutputFormat,
+        what: String,
+    },
+    Volume {
+        painter: Painter,
+        shape: [usize; 3],
+        format: VolumeFormat,
+        mesh: Option<PathBuf>,
+    },
+}
+
+/// One painted array: `shape` is `[H, W, C]` (`[D, H, W, C]` for a volume), row-major; `name`
+/// is the map's name for a map set.
+#[derive(Debug, Clone)]
+pub struct Painted {
+    pub name: Option<String>,
+    pub shape: Vec<usize>,
+    pub values: Vec<f32>,
+}
+
+impl SynthPlan {
+    /// Lines to say before painting: the model, and for a tile how far its period moved.
+    pub fn header(&self) -> Vec<String> {
+        let mut lines = vec![format!("model: {}", self.model)];
+        match &self.target {
+            Target::Image { painter, .. } | Target::Volume { painter, .. } => {
+                lines.extend(painter.tile_adjustment().map(|t| t.describe()));
+            }
+            Target::Tile { painter, .. } => {
+                let [rows, cols] = painter.resolution;
+                lines[0] = format!(
+                    "model: {} (a periodic tile, {cols}x{rows} per period, level of detail {})",
+                    self.model, painter.lod
+                );
+            }
+            Target::Slice { .. } => {}
+        }
+        lines
+    }
+
+    /// Rows painted in all, for a progress bar (images and tiles; 0 for volumes and slices).
+    pub fn rows(&self) -> usize {
+        match &self.target {
+            Target::Image { size, .. } | Target::Tile { size, .. } => size[0],
+            _ => 0,
+        }
+    }
+
+    /// Pixels painted (voxels for a volume).
+    pub fn pixels(&self) -> usize {
+        match &self.target {
+            Target::Image { size, .. } | Target::Tile { size, .. } => size[0] * size[1],
+            Target::Slice { image, .. } => image[0] * image[1],
+            Target::Volume { shape, .. } => shape.iter().product(),
+        }
+    }
+
+    /// Paints into memory: one array per file [`SynthPlan::write`] would write (the mesh
+    /// aside), value for value what a `.npy` output holds.
+    pub fn render(&self) -> Result<Vec<Painted>> {
+        match &self.target {
+            Target::Image {
+                painter,
+                size,
+                outputs,
+                names,
+            } => collect_bands(
+                outputs,
+                names,
+                painter.channels(),
+                *size,
+                false,
+                |row, rows| painter.render(&[row as i64, 0], &[rows, size[1]]),
+            ),
+            Target::Tile {
+                painter,
+                origin,
+                size,
+                outputs,
+                names,
+            } => collect_bands(
+                outputs,
+                names,
+                painter.net.shape.channels,
+                *size,
+                true,
+                |row, rows| painter.render([origin[0] + row as i64, origin[1]], [rows, size[1]]),
+            ),
+            Target::Slice {
+                painter,
+                origin,
+                shape,
+                image,
+                ..
+            } => Ok(vec![Painted {
+                name: None,
+                shape: vec![image[0], image[1], painter.channels()],
+                values: painter.render(origin, shape),
+            }]),
+            Target::Volume { painter, shape, .. } => Ok(vec![Painted {
+                name: None,
+                shape: vec![shape[0], shape[1], shape[2], painter.channels()],
+                values: painter.render(&[0, 0, 0], shape),
+            }]),
+        }
+    }
+
+    /// Checks that every output file can be written (its folder exists, its format holds the
+    /// size) before any work: the command line calls it before saying what it paints.
+    pub fn check_destinations(&self) -> Result<()> {
+        match &self.target {
+            Target::Image { size, outputs, .. } | Target::Tile { size, outputs, .. } => {
+                crate::maps::check_outputs(outputs, size[1], size[0])
+            }
+            Target::Slice { .. } => crate::io::check_destination(&self.out).map(drop),
+            Target::Volume { mesh, .. } => {
+                crate::io::check_destination(&self.out)?;
+                mesh.iter()
+                    .try_for_each(|m| crate::io::check_destination(m).map(drop))
+            }
+        }
+    }
+
+    /// Paints into the output files (temporary files renamed when complete), calling
+    /// `progress(rows_done)` after each band of an image. Returns the line saying what was
+    /// written (the time is the caller's to add).
+    pub fn write(&self, progress: impl FnMut(usize)) -> Result<String> {
+        self.check_destinations()?;
+        let out = self.out.display();
+        match &self.target {
+            Target::Image {
+                painter,
+                size,
+                outputs,
+                ..
+            } => {
+                painter.write_maps(outputs, *size, DEFAULT_BAND_PIXELS, progress)?;
+                Ok(format!(
+                    "wrote {} ({}x{}, seed {}, {:?})",
+                    paths(outputs),
+                    size[1],
+                    size[0],
+                    self.seed,
+                    self.device
+                ))
+            }
+            Target::Tile {
+                painter,
+                origin,
+                size,
+                outputs,
+                ..
+            } => {
+                painter.write(outputs, *origin, *size, DEFAULT_BAND_PIXELS)?;
+                Ok(format!(
+                    "wrote {} ({}x{}, {:?})",
+                    paths(outputs),
+                    size[1],
+                    size[0],
+                    self.device
+                ))
+            }
+            Target::Slice {
+                painter,
+                origin,
+                shape,
+                image,
+                format,
+                what,
+            } => {
+                let values = painter.render(origin, shape);
+                let mut writer = crate::io::ImageWriter::create(
+                    &self.out,
+                    *format,
+                    image[1],
+                    image[0],
+                    painter.channels(),
+                )?;
+                writer.write_rows(&values)?;
+                writer.finish()?;
+                Ok(format!(
+                    "wrote {out} ({what}: {}x{}, seed {})",
+                    image[1], image[0], self.seed
+                ))
+            }
+            Target::Volume {
+                painter,
+                shape,
+                format,
+                mesh,
+            } => self.write_volume(painter, *shape, *format, mesh.as_deref()),
+        }
+    }
+
+    fn write_volume(
+        &self,
+        painter: &Painter,
+        shape: [usize; 3],
+        format: VolumeFormat,
+        mesh: Option<&Path>,
+    ) -> Result<String> {
+        let [depth, height, width] = shape;
+        let mut builder = mesh.map(|_| crate::mesh::MeshBuilder::new(height, width));
+        painter.write_volume(&self.out, shape, DEFAULT_BAND_PIXELS, builder.as_mut())?;
+        let mut said = String::new();
+        if let (Some(path), Some(builder)) = (mesh, builder) {
+            let mesh = builder.finish();
+            crate::mesh::write_mesh(&mesh, path)?;
+            said = format!(
+                "wrote {}: {} vertices, {} triangles\n",
+                path.display(),
+                mesh.positions.len(),
+                mesh.triangles.len()
+            );
+        }
+        let c = painter.channels();
+        let layout = match format {
+            VolumeFormat::Npy => String::new(),
+            VolumeFormat::Raw => format!(
+                ", little-endian float32 [D, H, W, C] = [{depth}, {height}, {width}, {c}], no header"
+            ),
+        };
+        Ok(format!(
+            "{said}wrote {} ({width}x{height}x{depth} voxels, {c} channels, seed {}{layout})",
+            self.out.display(),
+            self.seed
+        ))
+    }
+}
+
+fn paths(outputs: &[MapOutput]) -> String {
+    let written: Vec<String> = outputs
+        .iter()
+        .map(|o| o.path.display().to_string())
+        .collect();
+    written.join(", ")
+}
+
+/// The bands of [`crate::maps::for_each_band`] gathered into one array per output.
+fn collect_bands(
+    outputs: &[MapOutput],
+    names: &[String],
+    channels: usize,
+    [height, width]: [usize; 2],
+    clamp: bool,
+    render: impl Fn(usize, usize) -> Vec<f32>,
+) -> Result<Vec<Painted>> {
+    let mut painted: Vec<Painted> = outputs
+        .iter()
+        .enumerate()
+        .map(|(i, o)| Painted {
+            name: names.get(i).cloned(),
+            shape: vec![height, width, o.channels.len()],
+            values: Vec::with_capacity(height * width * o.channels.len()),
+        })
+        .collect();
+    crate::maps::for_each_band(
+        outputs,
+        channels,
+        [height, width],
+        DEFAULT_BAND_PIXELS,
+        clamp,
+        render,
+        |i, values| {
+            painted[i].values.extend(values);
+            Ok(())
+        },
+        |_| {},
+    )?;
+    Ok(painted)
+}
