@@ -60,12 +60,26 @@ impl DeviceChoice {
         }
     }
 
-    /// `--device NAME`, or `auto` for [`DeviceChoice::best_for_training`].
-    pub fn for_training(name: &str) -> Result<Self> {
+    /// `--device NAME` on every command: `auto` (or nothing) is the best device present, the
+    /// same on every command ([`DeviceChoice::best_for_training`], with the CPU as its fused
+    /// path); any other name as [`FromStr`] reads it.
+    pub fn resolve(name: &str) -> Result<Self> {
         match name.to_ascii_lowercase().as_str() {
-            "auto" => Ok(Self::best_for_training()),
+            "" | "auto" => Ok(match Self::best_for_training() {
+                Self::Flex => Self::Cpu,
+                gpu => gpu,
+            }),
             other => other.parse(),
         }
+    }
+
+    /// [`DeviceChoice::resolve`] for training, where the CPU is burn's flex backend (its
+    /// steps fused where they can be).
+    pub fn for_training(name: &str) -> Result<Self> {
+        Ok(match Self::resolve(name)? {
+            Self::Cpu => Self::Flex,
+            other => other,
+        })
     }
 
     /// The device training uses: flex stands in for the fused CPU path, which has no backward.

@@ -12,6 +12,7 @@
 //! - [`train`]: WGAN-GP training: config, data, fakes, step, run folder and loop, Adam.
 //! - [`synth`]: painting regions, images, map sets and volumes, tileable or not.
 //! - [`model`]: which model a command paints with (most recent, shipped).
+//! - [`paint`]: `ipfn synth` as a request: every flag checked once, painted into files or memory.
 //! - [`device`]: device choice and probes (cpu, flex, wgpu, cuda).
 //! - [`exemplar`]: exemplar images and SDF volumes, read into [-1, 1].
 //! - [`checkpoint`]: model files (`.ipfn`, safetensors).
@@ -20,6 +21,7 @@
 //! - [`mesh`]: zero level sets of volumes as meshes (surface nets), welded across chunks.
 //! - [`metrics`]: SIFID (Keras InceptionV3 stem), structure distance (autocorrelation), seam
 //!   score of tiles, dominant periods.
+//! - [`eval`]: `ipfn eval`: a model against its exemplar, or two images.
 //! - [`fit`]: `ipfn fit`, a photo turned into a seamless tile by a periodic sine network.
 //! - [`procedural`]: exemplars drawn by our own code, with known periods.
 //! - [`report`]: a run folder read back as data, for `ipfn view` and `report.html`.
@@ -38,6 +40,7 @@ pub mod device;
 mod docs_tests;
 pub mod encoding;
 pub mod error;
+pub mod eval;
 pub mod exemplar;
 pub mod fit;
 pub mod generator;
@@ -49,6 +52,7 @@ pub mod maps;
 pub mod mesh;
 pub mod metrics;
 pub mod model;
+pub mod paint;
 pub mod procedural;
 pub mod report;
 pub mod sample;

@@ -27,6 +27,38 @@ pub struct ChosenModel {
     pub description: String,
     /// The maps of a map-set model.
     pub maps: Option<MapSet>,
+    /// What the model learned from: an image, a map set, a solid texture or a volume.
+    pub kind: ModelKind,
+    /// The training iteration the model file was written at (none for an imported model).
+    pub iteration: Option<u64>,
+}
+
+/// What a model paints.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelKind {
+    /// A generator of an image (the shipped honeycomb, `ipfn train IMAGE`).
+    Image,
+    /// A generator of aligned material maps (`ipfn train --maps`).
+    MapSet,
+    /// A 3D generator trained from a 2D exemplar (`ipfn train --solid`).
+    Solid,
+    /// A 3D generator of a signed distance volume (`ipfn train VOLUME.npy`).
+    Volume,
+    /// A tile fitted by `ipfn fit` (a periodic sine network, not an IPFN).
+    Tile,
+}
+
+impl ModelKind {
+    /// The kind's name: `image`, `map_set`, `solid`, `volume` or `tile`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Image => "image",
+            Self::MapSet => "map_set",
+            Self::Solid => "solid",
+            Self::Volume => "volume",
+            Self::Tile => "tile",
+        }
+    }
 }
 
 /// The checkpoint `--model` names, else the most recent model in `dir`, else the shipped
@@ -91,6 +123,14 @@ impl ModelFile {
         }
     }
 
+    /// What the model paints.
+    pub fn kind(&self) -> ModelKind {
+        match self {
+            ModelFile::Generator(model) => model.kind,
+            ModelFile::Tile { .. } => ModelKind::Tile,
+        }
+    }
+
     /// Where the model came from, as commands print it.
     pub fn description(&self) -> &str {
         match self {
@@ -122,6 +162,13 @@ pub fn load_model(explicit: Option<&Path>, dir: &Path) -> Result<ModelFile> {
     generator_model(&checkpoint, description, path.as_deref()).map(ModelFile::Generator)
 }
 
+/// The shipped honeycomb generator.
+pub fn load_shipped() -> Result<ChosenModel> {
+    let checkpoint = Checkpoint::from_bytes(SHIPPED_HONEYCOMB, Path::new("<shipped honeycomb>"))?;
+    let description = "shipped honeycomb (the IPFN authors' pretrained generator, MIT)".to_string();
+    generator_model(&checkpoint, description, None)
+}
+
 /// Loads `--model`, else the most recent model in `dir`, else the shipped honeycomb: a
 /// generator (a fitted tile is refused with a line saying what paints it).
 pub fn choose_model(explicit: Option<&Path>, dir: &Path) -> Result<ChosenModel> {
@@ -150,11 +197,35 @@ fn generator_model(
             config.channels
         ));
     }
+    // A 3D generator says how it was trained in its run's settings (an imported one has none).
+    let trained = checkpoint
+        .metadata
+        .get("train_config")
+        .and_then(|text| text.parse::<toml::Table>().ok());
+    let flag = |key: &str| {
+        trained
+            .as_ref()
+            .and_then(|t| t.get(key))
+            .and_then(toml::Value::as_bool)
+            .unwrap_or(false)
+    };
+    let kind = match (&maps, config.dims) {
+        (Some(_), _) => ModelKind::MapSet,
+        (None, 2) => ModelKind::Image,
+        (None, _) if flag("solid") => ModelKind::Solid,
+        (None, _) => ModelKind::Volume,
+    };
+    let iteration = checkpoint
+        .metadata
+        .get("iteration")
+        .and_then(|i| i.parse().ok());
     Ok(ChosenModel {
         config,
         weights,
         description,
         maps,
+        kind,
+        iteration,
     })
 }
 

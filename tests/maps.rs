@@ -401,3 +401,119 @@ fn float_maps_are_painted_as_exr() {
     }
     assert!(!d.join("f-base.png").exists());
 }
+
+/// A published set as it comes, in a folder: maps named by role in a library's spelling, a gray
+/// roughness stored as RGB, a gray height stored as RGBA with an opaque alpha, a DirectX
+/// normal map, and a preview image that is no map. The folder is read in role order, gray maps
+/// as gray, the empty alpha dropped, the DirectX normal turned to OpenGL's; a fit writes the
+/// normal map back in DirectX's convention.
+#[test]
+fn a_folder_of_scans_is_read_as_its_maps_say() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let set = d.join("Wall042");
+    std::fs::create_dir(&set).unwrap();
+    let (w, h) = (32, 32);
+    let wave = |x: usize, y: usize, f: f32| (x as f32 * f).sin() * (y as f32 * 0.7 * f).cos();
+    let pixels = |c: usize, f: &dyn Fn(usize, usize) -> Vec<f32>| -> Vec<f32> {
+        let v: Vec<f32> = (0..h * w).flat_map(|i| f(i % w, i / w)).collect();
+        assert_eq!(v.len(), h * w * c);
+        v
+    };
+    let color = pixels(3, &|x, y| {
+        vec![wave(x, y, 0.3), wave(y, x, 0.2), wave(x, x, 0.1)]
+    });
+    let gray = |x: usize, y: usize| wave(x, y, 0.25);
+    let rough = pixels(3, &|x, y| vec![gray(x, y); 3]);
+    let height = pixels(4, &|x, y| vec![gray(y, x), gray(y, x), gray(y, x), 1.0]);
+    // A DirectX normal: green is the negated OpenGL green.
+    let normal_dx = pixels(3, &|x, y| {
+        let (nx, ny) = (0.4 * wave(x, y, 0.3), 0.4 * wave(y, x, 0.3));
+        let nz = (1.0 - nx * nx - ny * ny).sqrt();
+        vec![nx, -ny, nz]
+    });
+    let write = |name: &str, c: usize, v: &[f32]| {
+        ipfn::io::write_png(&set.join(name), w, h, c, v).unwrap();
+    };
+    write("Wall042_1K-PNG_Color.png", 3, &color);
+    write("Wall042_1K-PNG_Roughness.png", 3, &rough);
+    write("Wall042_1K-PNG_Displacement.png", 4, &height);
+    write("Wall042_1K-PNG_NormalDX.png", 3, &normal_dx);
+    write("Wall042_preview.png", 3, &color);
+
+    let files = ipfn::maps::MapFiles::new(vec![set.clone()], None, false).unwrap();
+    let (exemplar, maps) = files.load().unwrap();
+    let names: Vec<&str> = maps.maps.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "Wall042_1K-PNG_Color",
+            "Wall042_1K-PNG_NormalDX",
+            "Wall042_1K-PNG_Displacement",
+            "Wall042_1K-PNG_Roughness"
+        ],
+        "role order, the preview left out"
+    );
+    let channels: Vec<(usize, Option<usize>)> = maps
+        .maps
+        .iter()
+        .map(|m| (m.channels, m.stored_channels))
+        .collect();
+    assert_eq!(channels, [(3, None), (3, None), (1, Some(4)), (1, Some(3))]);
+    assert!(maps.maps[1].normal && maps.maps[1].directx);
+    use ipfn::maps::MapRole;
+    let roles: Vec<Option<MapRole>> = maps.maps.iter().map(|m| m.role).collect();
+    let expected = [
+        MapRole::Color,
+        MapRole::Normal,
+        MapRole::Height,
+        MapRole::Roughness,
+    ];
+    assert_eq!(roles, expected.map(Some));
+    // The normal is learned in OpenGL's convention: green flipped back from the file's.
+    let c = exemplar.channels;
+    assert_eq!(c, 8);
+    let step = 2.0 / 255.0 + 1e-6;
+    for (p, px) in exemplar.values.chunks_exact(c).enumerate() {
+        assert!((px[4] + normal_dx[p * 3 + 1]).abs() <= step, "green at {p}");
+        assert!((px[6] - height[p * 4]).abs() <= step, "height at {p}");
+        assert!((px[7] - rough[p * 3]).abs() <= step, "roughness at {p}");
+    }
+    // Written back by a fit: DirectX's convention again, and the gray maps as gray.
+    let out = ipfn(
+        d,
+        &[
+            "fit",
+            "--maps",
+            "Wall042",
+            "--iterations",
+            "150",
+            "--run",
+            "fit",
+            "--device",
+            "cpu",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let said = stderr(&out);
+    assert!(
+        said.contains("Wall042_1K-PNG_Roughness (1 ch, read from 3"),
+        "{said}"
+    );
+    assert!(said.contains("normal, DirectX"), "{said}");
+    let tile = |name: &str| {
+        let path = d.join(format!("fit/tile-Wall042_1K-PNG_{name}.png"));
+        ipfn::exemplar::read_exemplar(&path).unwrap()
+    };
+    let normal = tile("NormalDX");
+    let greens = normal.values.chunks_exact(3).map(|px| px[1]);
+    let agreement: f32 = greens
+        .zip(normal_dx.chunks_exact(3))
+        .map(|(a, b)| a * b[1])
+        .sum();
+    assert!(
+        agreement > 0.0,
+        "the fitted normal's green follows the DirectX file's"
+    );
+    assert_eq!(tile("Roughness").channels, 1);
+}

@@ -430,6 +430,27 @@ fn fused_coarse_critic_follows_the_framework() {
     assert!(moved > 1e-4, "the coarse critic changed nothing ({moved})");
 }
 
+/// Whether sample `i` of `batch` (16-pixel crops, `[b, c, 1, 16, 16]`) is `exemplar` read
+/// every `stride`-th pixel from some origin.
+fn strided_read(
+    exemplar: &ipfn::exemplar::Exemplar,
+    batch: &[f32],
+    i: usize,
+    stride: usize,
+) -> bool {
+    let (s, c, w) = (16, exemplar.channels, exemplar.width);
+    let span = (s - 1) * stride + 1;
+    let origins = (0..=exemplar.height - span).flat_map(|y| (0..=w - span).map(move |x| (y, x)));
+    origins.into_iter().any(|(y, x)| {
+        (0..s * s).all(|q| {
+            let (r, col) = (y + q / s * stride, x + q % s * stride);
+            (0..c).all(|ch| {
+                batch[(i * c + ch) * s * s + q] == exemplar.values[(r * w + col) * c + ch]
+            })
+        })
+    })
+}
+
 /// The coarse critic's real crops are the exemplar read every `coarse_stride`-th pixel, the
 /// fine critic's every pixel, and the two critics draw other crops.
 #[test]
@@ -442,22 +463,8 @@ fn coarse_real_crops_are_strided_reads_of_the_exemplar() {
     };
     let run = dir.path().join("run");
     let trainer = Trainer::new(config, dir.path().join("ex.png"), &run, &Device::flex()).unwrap();
-    let (s, c, w) = (16, exemplar.channels, exemplar.width);
-    // Whether sample `i` of `batch` ([b, c, 1, s, s]) is the exemplar read every `stride`-th
-    // pixel from some origin.
-    let read_at = |batch: &[f32], i: usize, stride: usize| {
-        let span = (s - 1) * stride + 1;
-        let origins =
-            (0..=exemplar.height - span).flat_map(|y| (0..=w - span).map(move |x| (y, x)));
-        origins.into_iter().any(|(y, x)| {
-            (0..s * s).all(|q| {
-                let (r, col) = (y + q / s * stride, x + q % s * stride);
-                (0..c).all(|ch| {
-                    batch[(i * c + ch) * s * s + q] == exemplar.values[(r * w + col) * c + ch]
-                })
-            })
-        })
-    };
+    let read_at =
+        |batch: &[f32], i: usize, stride: usize| strided_read(&exemplar, batch, i, stride);
     let host = |t: Tensor<5>| t.try_into_vec_as::<f32>().unwrap();
     let coarse = host(trainer.real_batch(&[0, 1], Scale::Coarse));
     let fine = host(trainer.real_batch(&[0, 1], Scale::Fine));
@@ -488,20 +495,8 @@ fn coarse_to_fine_reads_strided_crops_then_plain_ones() {
     let mut trainer =
         Trainer::new(config, dir.path().join("ex.png"), &run, &Device::flex()).unwrap();
     assert!(trainer.coarse_critic().is_none(), "one critic");
-    let (s, c, w) = (16, exemplar.channels, exemplar.width);
-    let read_at = |batch: &[f32], i: usize, stride: usize| {
-        let span = (s - 1) * stride + 1;
-        let origins =
-            (0..=exemplar.height - span).flat_map(|y| (0..=w - span).map(move |x| (y, x)));
-        origins.into_iter().any(|(y, x)| {
-            (0..s * s).all(|q| {
-                let (r, col) = (y + q / s * stride, x + q % s * stride);
-                (0..c).all(|ch| {
-                    batch[(i * c + ch) * s * s + q] == exemplar.values[(r * w + col) * c + ch]
-                })
-            })
-        })
-    };
+    let read_at =
+        |batch: &[f32], i: usize, stride: usize| strided_read(&exemplar, batch, i, stride);
     let host = |t: Tensor<5>| t.try_into_vec_as::<f32>().unwrap();
     let before = host(trainer.real_batch(&[0, 1], Scale::Fine));
     trainer.step();

@@ -287,9 +287,9 @@ fn a_run_is_followed_live_and_reported_at_its_end() {
             let stop = AtomicBool::new(false);
             trainer
                 .run(&stop, |_, stats| {
-                    // Called before iteration i's checkpoint is saved: i - 1's is on disk.
-                    if (2..=4).contains(&stats.iteration) {
-                        seen_tx.send(stats.iteration - 1).unwrap();
+                    // Called once iteration i's checkpoint is saved.
+                    if (1..=3).contains(&stats.iteration) {
+                        seen_tx.send(stats.iteration).unwrap();
                         go_rx.recv().unwrap();
                     }
                 })

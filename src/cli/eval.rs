@@ -6,10 +6,10 @@ use std::time::Instant;
 
 use clap::Args;
 
-use crate::device::DeviceChoice;
 use crate::error::Result;
-use crate::input_error;
-use crate::model::{choose_checkpoint, choose_model};
+use crate::eval::{EvalRequest, ImagesReport, Report, compare_images};
+use crate::fit::TileReport;
+use crate::model::load_model;
 
 #[derive(Debug, Args)]
 pub struct EvalArgs {
@@ -34,7 +34,8 @@ pub struct EvalArgs {
     /// First seed.
     #[arg(long, default_value_t = 0, conflicts_with = "images")]
     pub seed: u64,
-    /// Where to synthesize: cpu, flex, wgpu or cuda.
+    /// Where to synthesize: cpu, flex, wgpu, cuda, or auto (the best present, as on every
+    /// command).
     #[arg(long, default_value = "cpu", conflicts_with = "images")]
     pub device: String,
     /// Print one JSON object instead of text.
@@ -43,38 +44,21 @@ pub struct EvalArgs {
 }
 
 pub(super) fn eval(args: EvalArgs) -> Result<()> {
-    use crate::metrics;
     let start = Instant::now();
     if let Some(images) = &args.images {
-        return eval_images(&args, &images[0], &images[1]);
+        return print_images(&args, &compare_images(&images[0], &images[1])?);
     }
-    let exemplar_path = args
-        .exemplar
-        .as_deref()
-        .expect("clap requires --exemplar without --images");
-    let device: DeviceChoice = args.device.parse()?;
-    device.burn_device()?;
-    if args.samples == 0 {
-        return Err(input_error!("--samples 0: need at least one sample"));
-    }
-    let exemplar = crate::exemplar::read_exemplar(exemplar_path)?;
-    let (checkpoint, description, _) = choose_checkpoint(args.model.as_deref(), Path::new("."))?;
-    if crate::fit::PeriodicNet::is_in(&checkpoint) {
-        return eval_tile(&args, &checkpoint, &description, &exemplar, exemplar_path);
-    }
-    let model = choose_model(args.model.as_deref(), Path::new("."))?;
-    let report = metrics::evaluate_model(
-        &model.config,
-        &model.weights,
-        &exemplar,
-        args.samples,
-        args.seed,
-        device,
-    )
-    .map_err(|e| match e {
-        crate::Error::Input(m) => input_error!("{}: {m}", exemplar_path.display()),
-        other => other,
-    })?;
+    let request = EvalRequest {
+        exemplar: args
+            .exemplar
+            .clone()
+            .expect("clap requires --exemplar without --images"),
+        samples: args.samples,
+        seed: args.seed,
+        device: crate::device::DeviceChoice::resolve(&args.device)?,
+    };
+    let model = load_model(args.model.as_deref(), Path::new("."))?;
+    let report = request.evaluate(&model)?;
     if args.json {
         println!(
             "{}",
@@ -82,60 +66,41 @@ pub(super) fn eval(args: EvalArgs) -> Result<()> {
         );
         return Ok(());
     }
-    eprintln!("model: {}", model.description);
-    print_report(&report);
+    match &report {
+        Report::Generator(report) => {
+            eprintln!("model: {}", model.description());
+            print_report(report);
+        }
+        Report::Tile(report) => {
+            eprintln!(
+                "model: {} (a periodic tile from ipfn fit)",
+                model.description()
+            );
+            print_tile(report, &request.exemplar);
+        }
+    }
     eprintln!("evaluated in {:.2} s", start.elapsed().as_secs_f64());
     Ok(())
 }
 
 /// `--images A B`: SIFID of the two, and B's structure distance to A with A's lags, beside A's
 /// floor.
-fn eval_images(args: &EvalArgs, a: &Path, b: &Path) -> Result<()> {
-    use crate::metrics;
-    let read = |p: &Path| -> Result<(crate::exemplar::Exemplar, metrics::Gaussian)> {
-        let image = crate::exemplar::read_exemplar(p)?;
-        let in_file = |e: crate::Error| match e {
-            crate::Error::Input(m) => input_error!("{}: {m}", p.display()),
-            other => other,
-        };
-        let rgb = metrics::to_unit_rgb(&image.values, image.channels).map_err(in_file)?;
-        let features = metrics::InceptionStem::embedded()
-            .features(&rgb, image.height, image.width)
-            .map_err(in_file)?;
-        let gaussian = metrics::Gaussian::fit(&features).map_err(in_file)?;
-        Ok((image, gaussian))
-    };
-    let ((ia, ga), (ib, gb)) = (read(a)?, read(b)?);
-    let score = metrics::frechet_distance(&ga, &gb);
-    let lags = metrics::structure_lags(ia.height, ia.width);
-    let map = |i: &crate::exemplar::Exemplar| {
-        metrics::Autocorrelation::of(&i.values, i.height, i.width, i.channels, lags)
-    };
-    let structure = map(&ia).distance(&map(&ib));
-    let floor = metrics::structure_floor(&ia.values, ia.height, ia.width, ia.channels);
+fn print_images(args: &EvalArgs, r: &ImagesReport) -> Result<()> {
     if args.json {
-        let out = serde_json::json!({
-            "metric": metrics::SIFID_NAME,
-            "sifid": score,
-            "structure": structure,
-            "structure_floor": floor,
-            "structure_lags": lags,
-            "a": a,
-            "b": b,
-        });
-        println!("{out}");
+        println!(
+            "{}",
+            serde_json::to_string(r).expect("the report serializes")
+        );
         return Ok(());
     }
+    let (a, b, lags) = (r.a.display(), r.b.display(), r.structure_lags);
     println!(
-        "SIFID {score:.4}  ({} vs {}; Keras InceptionV3 stem, not comparable with torchvision-based values)",
-        a.display(),
-        b.display()
+        "SIFID {:.4}  ({a} vs {b}; Keras InceptionV3 stem, not comparable with torchvision-based values)",
+        r.sifid
     );
     println!(
-        "structure {structure:.4}  ({} against {}, lags up to {lags} px; {}'s own halves: {floor:.4}. Lower is better)",
-        b.display(),
-        a.display(),
-        a.display()
+        "structure {:.4}  ({b} against {a}, lags up to {lags} px; {a}'s own halves: {:.4}. Lower is better)",
+        r.structure, r.structure_floor
     );
     Ok(())
 }
@@ -180,63 +145,21 @@ fn print_report(r: &crate::metrics::ModelReport) {
     );
 }
 
-/// A tile fitted by `ipfn fit` against its photo: PSNR (whole, and inside the seam band of
+/// A tile fitted by `ipfn fit` against its photo: PSNR (whole, and outside the seam band of
 /// the default fit) and the seam score of the tile laid 2x2.
-fn eval_tile(
-    args: &EvalArgs,
-    checkpoint: &crate::checkpoint::Checkpoint,
-    description: &str,
-    photo: &crate::exemplar::Exemplar,
-    photo_path: &Path,
-) -> Result<()> {
-    let net = crate::fit::PeriodicNet::read_from(checkpoint)?;
-    let period = net.shape.period;
-    let (h, w, c) = (photo.height, photo.width, net.shape.channels);
-    if photo.channels != c || h < period[0] || w < period[1] {
-        return Err(input_error!(
-            "{}: {w}x{h} with {} channels, but the tile {description} has a {}x{} period and {c} channels: give the photo it was fitted to",
-            photo_path.display(),
-            photo.channels,
-            period[1],
-            period[0]
-        ));
-    }
-    let mut painter = crate::fit::TilePainter::new(net);
-    painter.device = args.device.parse::<DeviceChoice>()?.burn_device()?;
-    let paint = |shape: [usize; 2]| -> Vec<f32> {
-        let values = painter.render([0, 0], shape);
-        values.iter().map(|v| v.clamp(-1.0, 1.0)).collect()
-    };
-    let (tile, one) = (paint([h, w]), paint(period));
-    let lambda =
-        crate::fit::target::seam_mask(h, w, crate::fit::FitConfig::default().seam_band_for([h, w]));
-    let whole = crate::fit::psnr(&tile, &photo.values, c, |_| true);
-    let interior = crate::fit::psnr(&tile, &photo.values, c, |i| lambda[i] == 0.0);
-    let seam = crate::metrics::seam_score(&one, period[0], period[1], c)?;
-    let photo_seam = crate::metrics::seam_score(&photo.values, h, w, c)?;
-    let lines = crate::metrics::line_score_spread(&photo.values, h, w, c);
-    if args.json {
-        let out = serde_json::json!({
-            "model": description,
-            "psnr": whole,
-            "psnr_interior": interior,
-            "seam_tile": seam,
-            "seam_photo": photo_seam,
-            "seam_photo_lines": lines,
-        });
-        println!("{out}");
-        return Ok(());
-    }
-    eprintln!("model: {description} (a periodic tile from ipfn fit)");
+fn print_tile(r: &TileReport, photo: &Path) {
     println!(
-        "PSNR           {whole:.2} dB against {} ({interior:.2} dB in the interior, outside the seam band)",
-        photo_path.display()
+        "PSNR           {:.2} dB against {} ({:.2} dB in the interior, outside the seam band)",
+        r.psnr,
+        photo.display(),
+        r.psnr_interior
     );
+    let seam = &r.seam_tile;
     println!(
         "seam score     {:.3} for the tile laid 2x2 (columns {:.3}, rows {:.3}); the photo laid 2x2: {:.3}. About 1 is seamless.",
-        seam.overall, seam.columns, seam.rows, photo_seam.overall
+        seam.overall, seam.columns, seam.rows, r.seam_photo.overall
     );
-    if let Some(l) = lines {
+    if let Some(l) = &r.seam_photo_lines {
         println!(
             "               the photo's own lines score {:.2} to {:.2} (5th to 95th percentile, median {:.2}): the tile's seam {} a line of the photo",
             l.p5,
@@ -251,5 +174,4 @@ fn eval_tile(
             }
         );
     }
-    Ok(())
 }

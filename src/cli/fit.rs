@@ -1,24 +1,22 @@
 //! `ipfn fit`: fit a periodic network to a photo and write the seamless tile and its model.
 
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
 
-use crate::device::DeviceChoice;
 use crate::error::Result;
+use crate::fit::FitEnd;
+use crate::fit::request::{FitOutcome, FitRequest, OpenedFit};
 use crate::fit::run::Progress;
-use crate::fit::{FitConfig, FitEnd, Fitter};
-use crate::input_error;
-use crate::io::OutputFormat;
-use crate::maps::{MapFiles, MapOutput};
 
 #[derive(Debug, Args)]
 pub struct FitArgs {
     /// The photo: PNG (8/16-bit), JPEG or EXR. Not needed with --resume or --maps.
     pub photo: Option<PathBuf>,
-    /// A material map set fitted by one network, so the maps stay aligned.
+    /// A material map set fitted by one network, so the maps stay aligned: the files, or a
+    /// folder of maps named by role (color, normal, height, roughness, ao, metalness).
     #[arg(
         long,
         value_delimiter = ',',
@@ -26,13 +24,17 @@ pub struct FitArgs {
         conflicts_with = "photo"
     )]
     pub maps: Option<Vec<PathBuf>>,
-    /// Which maps are normal maps, by file stem (default: names containing "normal").
+    /// Which maps are normal maps, by file stem (default: the maps named as normal maps).
     #[arg(long, value_delimiter = ',', value_name = "NAMES", requires = "maps")]
     pub normal_maps: Option<Vec<String>>,
     /// Resample maps of another size to the first map's size (maps of mixed bit depths are
     /// read as they are, without it).
     #[arg(long, requires = "maps")]
     pub resize_maps: bool,
+    /// The normal maps' convention: gl (OpenGL, green up) or dx (DirectX, green down; read
+    /// and written back as DirectX). Default: as each map's name says (NormalDX, nor_dx: dx).
+    #[arg(long, value_name = "gl|dx", value_parser = ["gl", "dx"], requires = "maps")]
+    pub normal_convention: Option<String>,
     /// A mask of the photo's size: dark pixels (at or below half gray) are left out of the fit
     /// and filled in by the periodic structure.
     #[arg(long, value_name = "PATH")]
@@ -98,45 +100,33 @@ pub struct FitArgs {
 }
 
 impl FitArgs {
-    fn config(&self) -> Result<FitConfig> {
-        let mut c = FitConfig {
+    /// The library request these flags ask for.
+    pub fn request(&self) -> FitRequest {
+        FitRequest {
             photo: self.photo.clone(),
+            maps: self.maps.clone(),
+            normal_maps: self.normal_maps.clone(),
+            resize_maps: self.resize_maps,
+            directx_normals: self.normal_convention.as_deref().map(|c| c == "dx"),
             mask: self.mask.clone(),
             period: self.period,
-            ..FitConfig::default()
-        };
-        if let Some(files) = &self.maps {
-            c.maps = Some(MapFiles::new(
-                files.clone(),
-                self.normal_maps.as_deref(),
-                self.resize_maps,
-            )?);
+            out: self.out.clone(),
+            bits: self.bits,
+            run: self.run.clone(),
+            resume: self.resume.clone(),
+            time: self.time.clone(),
+            iterations: self.iterations,
+            device: self.device.clone(),
+            band_limit: self.band_limit,
+            stages: self.stages,
+            frequencies: self.frequencies,
+            hidden: self.hidden.clone(),
+            lr: self.lr,
+            batch: self.batch,
+            seam_band: self.seam_band,
+            seed: self.seed,
+            checkpoint_every: self.checkpoint_every,
         }
-        macro_rules! set {
-            ($($field:ident),*) => { $(if let Some(v) = &self.$field { c.$field = v.clone(); })* };
-        }
-        set!(
-            band_limit,
-            stages,
-            frequencies,
-            hidden,
-            lr,
-            batch,
-            seed,
-            checkpoint_every
-        );
-        if self.seam_band.is_some() {
-            c.seam_band = self.seam_band;
-        }
-        if let Some(n) = self.iterations {
-            c.iterations = FitConfig::stage_steps(n, c.stages);
-        }
-        c.time = match (&self.time, self.iterations) {
-            (Some(t), _) => Some(t.clone()),
-            (None, None) => Some("10m".into()),
-            (None, Some(_)) => None,
-        };
-        Ok(c)
     }
 }
 
@@ -153,58 +143,21 @@ fn parse_period(text: &str) -> std::result::Result<[usize; 2], String> {
     }
 }
 
-/// `--device`: `None` for the fused CPU path, else a burn device.
-fn fit_device(name: &str) -> Result<(Option<burn::tensor::Device>, String)> {
-    let choice = match name.to_ascii_lowercase().as_str() {
-        "auto" => match DeviceChoice::best_for_training() {
-            DeviceChoice::Flex => DeviceChoice::Cpu,
-            gpu => gpu,
-        },
-        other => other.parse()?,
-    };
-    Ok((choice.burn_device()?, crate::bench::device_name(choice)))
-}
-
 pub(super) fn fit(args: FitArgs) -> Result<()> {
-    let (device, device_name) = fit_device(&args.device)?;
     let say = |s: String| {
         if !args.quiet {
             eprintln!("{s}");
         }
     };
-    let mut fitter = match &args.resume {
-        Some(dir) => {
-            let f = Fitter::resume(dir, device)?;
-            say(format!(
-                "resuming {} at stage {}, step {}",
-                dir.display(),
-                f.stage + 1,
-                f.iteration
-            ));
-            f
-        }
-        None => {
-            let config = args.config()?;
-            let budget = config
-                .time
-                .as_deref()
-                .map(crate::train::config::parse_duration)
-                .transpose()?;
-            let name = config.photo.as_deref().or(args
-                .maps
-                .as_ref()
-                .and_then(|m| m.first().map(PathBuf::as_path)));
-            let run = args
-                .run
-                .clone()
-                .unwrap_or_else(|| default_run_dir(name.unwrap_or(Path::new("tile"))));
-            let mut f = Fitter::start(config, &run, device)?;
-            if let Some(budget) = budget.filter(|_| f.config.iterations.is_empty()) {
-                f.plan(budget);
-            }
-            f
-        }
-    };
+    let request = args.request();
+    let OpenedFit {
+        mut fitter,
+        device,
+        deadline,
+        lines,
+    } = request.open()?;
+    lines.into_iter().for_each(say);
+    let device_name = crate::bench::device_name(device);
     let [h, w] = fitter.net.shape.period;
     let params = fitter.net.shape.parameters();
     say(format!(
@@ -216,10 +169,6 @@ pub(super) fn fit(args: FitArgs) -> Result<()> {
         fitter.config.iterations,
         fitter.run_dir().display()
     ));
-    let deadline = match (&args.resume, &fitter.config.time) {
-        (None, Some(t)) => Some(Instant::now() + crate::train::config::parse_duration(t)?),
-        _ => None,
-    };
     crate::stop::install(crate::stop::OnSignal::FinishStep);
     let start = Instant::now();
     let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
@@ -282,72 +231,22 @@ pub(super) fn fit(args: FitArgs) -> Result<()> {
         ));
     }
     let fitted = start.elapsed().as_secs_f64();
-    write_outputs(&args, &fitter, &say, fitted)
-}
-
-/// `runs/<photo stem>-tile`.
-pub fn default_run_dir(photo: &Path) -> PathBuf {
-    let stem = photo.file_stem().map(|s| s.to_string_lossy().into_owned());
-    PathBuf::from("runs").join(format!("{}-tile", stem.unwrap_or_else(|| "photo".into())))
-}
-
-/// Writes `tile.ipfn` and the tile image(s), and says how well the tile matches and tiles.
-fn write_outputs(
-    args: &FitArgs,
-    fitter: &Fitter,
-    say: &impl Fn(String),
-    seconds: f64,
-) -> Result<()> {
-    let run = fitter.run_dir();
-    let model = run.join("tile.ipfn");
-    fitter.model_file().save(&model)?;
-    let out = args.out.clone().unwrap_or_else(|| run.join("tile.png"));
-    if let Some(bits) = args.bits.filter(|b| *b != 8 && *b != 16) {
-        return Err(input_error!(
-            "--bits {bits}: PNG output is 8 or 16 bits per channel"
-        ));
-    }
-    let photo = fitter.photo();
-    let (h, w, c) = (photo.height, photo.width, photo.channels);
-    let period = fitter.net.shape.period;
-    let outputs = match fitter.maps() {
-        Some(set) => set.outputs(&out, args.bits)?,
-        None => vec![MapOutput {
-            path: out.clone(),
-            format: OutputFormat::from_path(&out, args.bits.unwrap_or(8))?,
-            channels: 0..c,
-            normal: false,
-        }],
-    };
-    let painter = fitter.painter();
-    painter.write(&outputs, [0, 0], period, crate::synth::DEFAULT_BAND_PIXELS)?;
-    let tile = painter.render([0, 0], [h, w]);
-    let lambda = crate::fit::target::seam_mask(h, w, fitter.config.seam_band_for([h, w]));
-    let kept = |i: usize| fitter.mask().is_none_or(|m| m[i] > 0.5);
-    let whole = crate::fit::psnr(&tile, &photo.values, c, kept);
-    let interior = crate::fit::psnr(&tile, &photo.values, c, |i| kept(i) && lambda[i] == 0.0);
-    let one: Vec<f32> = if period == [h, w] {
-        tile.iter().map(|v| v.clamp(-1.0, 1.0)).collect()
-    } else {
-        painter
-            .render([0, 0], period)
-            .iter()
-            .map(|v| v.clamp(-1.0, 1.0))
-            .collect()
-    };
-    let seam = crate::metrics::seam_score(&one, period[0], period[1], c)?;
-    let lines = match crate::metrics::line_score_spread(&photo.values, h, w, c) {
+    let FitOutcome {
+        model,
+        images,
+        report,
+    } = request.finish(&fitter)?;
+    let lines = match &report.seam_photo_lines {
         Some(l) => format!(" (the photo's own lines: {:.2} to {:.2})", l.p5, l.p95),
         None => String::new(),
     };
-    let written: Vec<String> = outputs
-        .iter()
-        .map(|o| o.path.display().to_string())
-        .collect();
+    let images: Vec<String> = images.iter().map(|p| p.display().to_string()).collect();
     say(format!(
-        "fitted in {seconds:.1} s: PSNR {whole:.2} dB (interior {interior:.2} dB), seam score 2x2 {:.3}{lines}; wrote {} and {} (paint any size: ipfn synth --model {})",
-        seam.overall,
-        written.join(", "),
+        "fitted in {fitted:.1} s: PSNR {:.2} dB (interior {:.2} dB), seam score 2x2 {:.3}{lines}; wrote {} and {} (paint any size: ipfn synth --model {})",
+        report.psnr,
+        report.psnr_interior,
+        report.seam_tile.overall,
+        images.join(", "),
         model.display(),
         model.display()
     ));

@@ -6,14 +6,9 @@ use std::time::Instant;
 
 use clap::Args;
 
-use crate::device::DeviceChoice;
 use crate::error::Result;
-use crate::input_error;
-use crate::maps::MapFiles;
-use crate::train::recipe::settle;
-use crate::train::{
-    ExemplarSource, RunEnd, RunState, TrainConfig, TrainOverrides, Trainer, default_run_dir,
-};
+use crate::train::request::{OpenedRun, TrainRequest};
+use crate::train::{RunEnd, TrainOverrides};
 
 #[derive(Debug, Args)]
 pub struct TrainArgs {
@@ -34,8 +29,10 @@ pub struct TrainArgs {
     #[arg(long, requires = "resume")]
     pub from_previous: bool,
     /// A material map set instead of one image: aligned maps of one size
-    /// (albedo.png,normal.png,roughness.png,height.png), each read and painted back at its own
-    /// bit depth, learned together; synth writes one file per map, named after these files.
+    /// (albedo.png,normal.png,roughness.png,height.png), or a folder of them named by role
+    /// (color, normal, height, roughness, ao, metalness and their usual spellings), each read
+    /// and painted back at its own bit depth (a gray map stored as RGB is read as gray, an
+    /// opaque alpha dropped), learned together; synth writes one file per map.
     #[arg(
         long,
         value_delimiter = ',',
@@ -44,13 +41,18 @@ pub struct TrainArgs {
     )]
     pub maps: Option<Vec<PathBuf>>,
     /// Which maps are normal maps (renormalised to unit length on output), by file stem.
-    /// Default: the maps whose name contains "normal"; pass "" for none.
+    /// Default: the maps named as normal maps (normal, nor_gl, NormalGL, NormalDX, ...); pass
+    /// "" for none.
     #[arg(long, value_delimiter = ',', value_name = "NAMES", requires = "maps")]
     pub normal_maps: Option<Vec<String>>,
     /// Resample maps of another size to the first map's size (maps of mixed bit depths are
     /// read as they are, without it).
     #[arg(long, requires = "maps")]
     pub resize_maps: bool,
+    /// The normal maps' convention: gl (OpenGL, green up) or dx (DirectX, green down; read
+    /// and written back as DirectX). Default: as each map's name says (NormalDX, nor_dx: dx).
+    #[arg(long, value_name = "gl|dx", value_parser = ["gl", "dx"], requires = "maps")]
+    pub normal_convention: Option<String>,
     /// Where to train: auto (the best present: cuda where it starts, else a wgpu GPU, else
     /// the CPU; the choice is printed), flex (CPU), wgpu (GPU) or cuda (NVIDIA GPU; a build
     /// with --features cuda).
@@ -63,30 +65,38 @@ pub struct TrainArgs {
     pub overrides: TrainOverrides,
 }
 
+impl TrainArgs {
+    /// The library request these flags ask for.
+    pub fn request(&self) -> TrainRequest {
+        TrainRequest {
+            exemplar: self.exemplar.clone(),
+            maps: self.maps.clone(),
+            normal_maps: self.normal_maps.clone(),
+            resize_maps: self.resize_maps,
+            directx_normals: self.normal_convention.as_deref().map(|c| c == "dx"),
+            config: self.config.clone(),
+            settings: None,
+            flags: self.overrides.clone(),
+            out: self.out.clone(),
+            resume: self.resume.clone(),
+            from_previous: self.from_previous,
+            device: self.device.clone(),
+        }
+    }
+}
+
 pub(super) fn train(args: TrainArgs) -> Result<()> {
-    let choice = DeviceChoice::for_training(&args.device)?;
-    let device = choice.training_device()?;
     let say = |s: String| {
         if !args.quiet {
             eprintln!("{s}");
         }
     };
-    let mut trainer = match &args.resume {
-        Some(dir) => {
-            let state = match args.from_previous {
-                true => RunState::Previous,
-                false => RunState::Latest,
-            };
-            let t = Trainer::resume_with(dir, state, &args.overrides, &device)?;
-            say(format!(
-                "resuming {} at iteration {}",
-                dir.display(),
-                t.iteration
-            ));
-            t
-        }
-        None => start(&args, choice, &say)?,
-    };
+    let OpenedRun {
+        mut trainer,
+        device: choice,
+        lines,
+    } = args.request().open()?;
+    lines.into_iter().for_each(say);
     let total = trainer.config.iterations;
     let length = match &trainer.config.time {
         Some(time) => time.clone(),
@@ -164,42 +174,6 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
         trainer.run_dir().join("report.html").display()
     ));
     Ok(())
-}
-
-/// A new run: the exemplar or map set, the config file and flags, then the settings the
-/// recipe chooses from the exemplar (printed once the run's settings are checked, so that an
-/// error stays one line).
-fn start(args: &TrainArgs, choice: DeviceChoice, say: &impl Fn(String)) -> Result<Trainer> {
-    let device = choice.training_device()?;
-    let source: ExemplarSource = match (&args.exemplar, &args.maps) {
-        (Some(image), _) => image.into(),
-        (None, Some(files)) => {
-            MapFiles::new(files.clone(), args.normal_maps.as_deref(), args.resize_maps)?.into()
-        }
-        (None, None) => {
-            return Err(input_error!(
-                "no exemplar given: `ipfn train IMAGE` (or `--maps A.png,B.png,...`) starts a run, `ipfn train --resume runs/NAME` continues one"
-            ));
-        }
-    };
-    let (mut config, mut explicit) = match &args.config {
-        Some(path) => TrainConfig::from_file(path)?,
-        None => (TrainConfig::default(), Default::default()),
-    };
-    args.overrides.apply(&mut config);
-    explicit.extend(args.overrides.given().into_iter().map(String::from));
-    let on_gpu = !matches!(choice, DeviceChoice::Cpu | DeviceChoice::Flex);
-    let chosen = settle(&mut config, &source, &explicit, on_gpu)?;
-    let run_dir = args
-        .out
-        .clone()
-        .unwrap_or_else(|| default_run_dir(source.main_path()));
-    let trainer = Trainer::start(config, source, &run_dir, &device)?;
-    chosen.into_iter().for_each(say);
-    if let Some(maps) = trainer.maps() {
-        say(format!("map set: {}", maps.describe()));
-    }
-    Ok(trainer)
 }
 
 /// A progress bar over `total` iterations starting at `position`, on a terminal when `show`.

@@ -70,7 +70,7 @@ fn resolve(path: Option<&Path>) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
 }
 
 pub(super) fn view(args: ViewArgs) -> Result<()> {
-    let device: DeviceChoice = args.device.parse()?;
+    let device = DeviceChoice::resolve(&args.device)?;
     device.burn_device()?;
     if !args.export_dir.is_dir() {
         return Err(input_error!(

@@ -9,6 +9,7 @@
 //! - [`target`]: the Poisson seam loss's targets (colours, gradients, λ, masks), batches.
 //! - [`run`]: the fitting loop, run folder, checkpoints and resume.
 //! - [`render`]: painting the tile at any size and level of detail.
+//! - [`report`]: how well a tile matches its photo and how seamlessly it tiles.
 //! - [`crossfade`]: the classic "make seamless" filter, for comparison.
 
 pub mod crossfade;
@@ -16,6 +17,8 @@ pub mod fused;
 pub mod network;
 pub mod reference;
 pub mod render;
+pub mod report;
+pub mod request;
 pub mod run;
 pub mod target;
 
@@ -29,6 +32,7 @@ use crate::input_error;
 use crate::maps::MapFiles;
 pub use network::{NetworkShape, PeriodicNet, StageShape};
 pub use render::TilePainter;
+pub use report::TileReport;
 pub use run::{FitEnd, Fitter};
 
 /// The settings of a fit. Every field has a default; `ipfn fit`'s flags set them.

@@ -4,8 +4,14 @@
 //! Alignment is exact by construction: one generator paints all channels of a pixel in one
 //! evaluation, and the maps are cut from that evaluation.
 
+mod files;
+mod role;
+
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+
+pub use files::MapFiles;
+pub use role::MapRole;
 
 use serde::{Deserialize, Serialize};
 
@@ -29,6 +35,17 @@ pub struct MapInfo {
     pub bits: u8,
     /// A normal map: its first three channels are a vector, renormalised to unit length on output.
     pub normal: bool,
+    /// What the map is, from its file's name (colour, normal, height, ...); none if unknown.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub role: Option<MapRole>,
+    /// A normal map in DirectX's convention (green points down): read into OpenGL's, which
+    /// the model learns, and written back in DirectX's.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub directx: bool,
+    /// The channels of the file where it held more than the map has: a gray map stored as RGB
+    /// (or RGBA), an alpha channel that held nothing.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stored_channels: Option<usize>,
 }
 
 /// The maps of a set, in channel order.
@@ -45,8 +62,19 @@ impl MapSet {
             .maps
             .iter()
             .map(|m| {
-                let normal = if m.normal { ", normal" } else { "" };
-                format!("{} ({} ch, {}-bit{normal})", m.name, m.channels, m.bits)
+                let normal = match (m.normal, m.directx) {
+                    (true, true) => ", normal, DirectX",
+                    (true, false) => ", normal",
+                    _ => "",
+                };
+                let stored = match m.stored_channels {
+                    Some(c) => format!(", read from {c}"),
+                    None => String::new(),
+                };
+                format!(
+                    "{} ({} ch{stored}, {}-bit{normal})",
+                    m.name, m.channels, m.bits
+                )
             })
             .collect();
         names.join(", ")
@@ -115,6 +143,7 @@ impl MapSet {
                     format,
                     channels: range,
                     normal: map.normal,
+                    directx: map.normal && map.directx,
                 })
             })
             .collect()
@@ -129,6 +158,18 @@ pub struct MapOutput {
     /// The map's channels within the stacked pixel.
     pub channels: Range<usize>,
     pub normal: bool,
+    /// Written in DirectX's normal convention (green negated).
+    pub directx: bool,
+}
+
+/// Negates every pixel's second channel (values in [-1, 1]): a normal map between OpenGL's
+/// convention (green up) and DirectX's (green down).
+pub fn flip_green(values: &mut [f32], channels: usize) {
+    if channels >= 2 {
+        values
+            .chunks_exact_mut(channels)
+            .for_each(|px| px[1] = -px[1]);
+    }
 }
 
 /// Rescales the first three channels of every pixel (`[.., channels]`, values in [-1, 1]) to unit
@@ -145,119 +186,6 @@ pub fn renormalise(values: &mut [f32], channels: usize) {
             px[..3].copy_from_slice(&[0.0, 0.0, 1.0]);
         }
     }
-}
-
-/// The files of a map set and which of them are normal maps.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MapFiles {
-    pub files: Vec<PathBuf>,
-    pub normal: Vec<bool>,
-    /// Resample maps to the first map's size instead of refusing them.
-    pub resample: bool,
-}
-
-impl MapFiles {
-    /// `normal_names`: the stems of the normal maps; `None` picks those whose stem contains
-    /// "normal".
-    pub fn new(
-        files: Vec<PathBuf>,
-        normal_names: Option<&[String]>,
-        resample: bool,
-    ) -> Result<Self> {
-        if files.len() < 2 {
-            return Err(input_error!(
-                "--maps needs at least two files (a single image trains as a plain exemplar)"
-            ));
-        }
-        let stems: Vec<String> = files.iter().map(|f| stem(f)).collect();
-        for (i, s) in stems.iter().enumerate() {
-            if stems[..i].contains(s) {
-                return Err(input_error!(
-                    "--maps: two maps are named '{s}'; outputs are named after the files, so give each a different name"
-                ));
-            }
-        }
-        if let Some(names) = normal_names {
-            for n in names.iter().filter(|n| !n.is_empty()) {
-                if !stems.contains(n) {
-                    return Err(input_error!(
-                        "--normal-maps {n}: no map of that name; the maps are {}",
-                        stems.join(", ")
-                    ));
-                }
-            }
-        }
-        let normal = stems
-            .iter()
-            .map(|s| match normal_names {
-                Some(names) => names.contains(s),
-                None => s.to_ascii_lowercase().contains("normal"),
-            })
-            .collect();
-        Ok(Self {
-            files,
-            normal,
-            resample,
-        })
-    }
-
-    /// Reads the maps, each at its own bit depth, checks that they agree in size (or resamples
-    /// them to the first map's size when `resample` is set), and stacks their channels.
-    pub fn load(&self) -> Result<(Exemplar, MapSet)> {
-        let mut maps = Vec::new();
-        let mut images: Vec<Exemplar> = Vec::new();
-        for (file, &normal) in self.files.iter().zip(&self.normal) {
-            let (mut image, bits) = crate::exemplar::read_exemplar_with_bits(file)?;
-            if let Some(first) = images.first() {
-                // Each map keeps its own bit depth (a published set mixes 8-bit colour with
-                // 16-bit normals and heights), and is painted back at it.
-                let (w, h) = (first.width, first.height);
-                if (image.width, image.height) != (w, h) {
-                    if !self.resample {
-                        return Err(input_error!(
-                            "{}: {}x{}, but {} is {w}x{h}; maps must be the same size (or pass --resize-maps to resample them)",
-                            file.display(),
-                            image.width,
-                            image.height,
-                            self.files[0].display()
-                        ));
-                    }
-                    image = image.resized(w, h);
-                }
-            }
-            if normal && image.channels < 3 {
-                return Err(input_error!(
-                    "{}: a normal map needs 3 channels, this one has {}",
-                    file.display(),
-                    image.channels
-                ));
-            }
-            maps.push(MapInfo {
-                name: stem(file),
-                channels: image.channels,
-                bits,
-                normal,
-            });
-            images.push(image);
-        }
-        Ok((stack(&images), MapSet { maps }))
-    }
-
-    /// A short name for messages: the first file and how many more.
-    pub fn describe(&self) -> String {
-        format!(
-            "{} (+{} maps)",
-            self.files[0].display(),
-            self.files.len() - 1
-        )
-    }
-}
-
-fn stem(path: &Path) -> String {
-    path.file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "map".into())
 }
 
 /// Stacks same-size images channel-wise: pixel by pixel, the first image's channels, then the
@@ -323,6 +251,9 @@ pub fn for_each_band(
             };
             if o.normal {
                 renormalise(&mut map, o.channels.len());
+            }
+            if o.directx {
+                flip_green(&mut map, o.channels.len());
             }
             sink(i, map)?;
         }

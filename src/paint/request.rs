@@ -250,6 +250,7 @@ impl SynthRequest {
                     format,
                     channels: 0..channels,
                     normal: false,
+                    directx: false,
                 }],
                 Vec::new(),
             ),

@@ -11,8 +11,6 @@
 
 mod engine;
 mod painter;
-pub mod plan;
-pub mod request;
 mod tile;
 
 pub(crate) use engine::{Engine, paint_fused};

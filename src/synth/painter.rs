@@ -201,6 +201,7 @@ impl Painter {
             format,
             channels: 0..self.channels,
             normal: false,
+            directx: false,
         };
         self.write_maps(&[whole], [height, width], band_pixels, progress)
     }

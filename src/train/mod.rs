@@ -25,6 +25,7 @@ pub mod draws;
 pub mod fakes;
 pub mod overrides;
 pub mod recipe;
+pub mod request;
 pub mod run;
 pub mod score;
 pub mod step;

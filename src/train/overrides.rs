@@ -7,8 +7,10 @@ use super::config::TrainConfig;
 /// resumed run may change it. A key is added to the command line here, once.
 macro_rules! overrides {
     ($( $(#[doc = $doc:expr])* $key:ident : $ty:ty, $resume:ident $(, $attr:meta)*; )*) => {
-        /// Flags that override config keys of the same name.
-        #[derive(Debug, Clone, Default)]
+        /// Flags that override config keys of the same name (also read from TOML, as a
+        /// library caller's settings for a resumed run).
+        #[derive(Debug, Clone, Default, serde::Deserialize)]
+        #[serde(deny_unknown_fields)]
         #[cfg_attr(feature = "cli", derive(clap::Args))]
         pub struct TrainOverrides {
             $(
@@ -22,6 +24,11 @@ macro_rules! overrides {
             /// Applies the flags to `config`.
             pub fn apply(&self, config: &mut TrainConfig) {
                 $( if let Some(v) = self.$key.clone() { Override::set(&mut config.$key, v); } )*
+            }
+
+            /// These flags, and `base`'s where these leave a key unset.
+            pub fn over(self, base: Self) -> Self {
+                Self { $( $key: self.$key.or(base.$key), )* }
             }
 
             /// The config keys these flags set.

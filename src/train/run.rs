@@ -180,13 +180,23 @@ impl Trainer {
                 stats.repeat = Some(s.repeat);
             }
             self.append_metrics(&stats)?;
-            on_iteration(self, &stats);
             if checkpoint {
                 self.keep_if_best(score.map(|s| s.combined()))?;
                 self.save_checkpoint()?;
             }
             if preview {
                 self.save_preview()?;
+            }
+            // After the iteration's files are written: a caller sees its checkpoint and preview.
+            on_iteration(self, &stats);
+            // A stop asked for by the caller (or a signal) during the callback: this iteration
+            // is the last, so it is kept.
+            if !checkpoint && stop.load(Ordering::SeqCst) {
+                let score = self.score()?;
+                self.keep_if_best(score.map(|s| s.combined()))?;
+                self.save_checkpoint()?;
+                self.report("stopped");
+                return Ok(RunEnd::Stopped);
             }
             if stopped {
                 self.report("stopped");

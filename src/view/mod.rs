@@ -338,16 +338,7 @@ impl ViewModel {
         };
         let chosen = match file {
             Some(f) => crate::model::choose_model(Some(f), Path::new("."))?,
-            None => {
-                let (config, weights) = crate::model::shipped_model()?;
-                crate::model::ChosenModel {
-                    config,
-                    weights,
-                    description: "shipped honeycomb (the IPFN authors' pretrained generator)"
-                        .into(),
-                    maps: None,
-                }
-            }
+            None => crate::model::load_shipped()?,
         };
         Ok(Self {
             config: chosen.config,

@@ -1,4 +1,4 @@
-//! `ipfn synth`: the flags, mapped onto [`crate::synth::request::SynthRequest`], which decides
+//! `ipfn synth`: the flags, mapped onto [`crate::paint::SynthRequest`], which decides
 //! what they paint; this file parses and prints.
 
 mod zarr;
@@ -11,8 +11,8 @@ use clap::Args;
 
 use crate::error::Result;
 use crate::model::load_model;
-pub use crate::synth::request::Size;
-use crate::synth::request::{SynthRequest, ZarrOptions};
+pub use crate::paint::Size;
+use crate::paint::{SynthRequest, ZarrOptions};
 
 #[derive(Debug, Args)]
 pub struct SynthArgs {
@@ -102,7 +102,8 @@ pub struct SynthArgs {
     /// With --shard-from-env: the number of shards N.
     #[arg(long, value_name = "N", requires = "shard_from_env")]
     pub shards: Option<usize>,
-    /// Where to run: cpu (fused CPU evaluator), flex (burn CPU backend), wgpu (GPU) or cuda
+    /// Where to run: cpu (fused CPU evaluator), flex (burn CPU backend), wgpu (GPU), auto (the
+    /// best present, as on every command) or cuda
     /// (NVIDIA GPU; a build with --features cuda).
     #[arg(long, default_value = "cpu")]
     pub device: String,
@@ -209,7 +210,7 @@ impl SynthArgs {
                 shard_from_env: self.shard_from_env.clone(),
                 shards: self.shards,
             },
-            device: self.device.parse()?,
+            device: crate::device::DeviceChoice::resolve(&self.device)?,
             lod: self.lod,
             gpu_kernel: gpu_kernel_from_env(),
         })

@@ -7,7 +7,7 @@ use super::SynthArgs;
 use crate::error::Result;
 use crate::io::zarr::{ZarrType, ZarrWriter};
 use crate::model::ModelFile;
-use crate::synth::request::SynthRequest;
+use crate::paint::SynthRequest;
 
 /// The flags that make one worker differ from another of the same render; they are left out of
 /// the command stored with the array, so every shard writes the same metadata.
