@@ -492,6 +492,8 @@ fn a_folder_of_scans_is_read_as_its_maps_say() {
             "fit",
             "--device",
             "cpu",
+            "--preview",
+            "fit-preview.png",
         ],
     );
     assert!(out.status.success(), "{}", stderr(&out));
@@ -516,4 +518,60 @@ fn a_folder_of_scans_is_read_as_its_maps_say() {
         "the fitted normal's green follows the DirectX file's"
     );
     assert_eq!(tile("Roughness").channels, 1);
+
+    // The material lit: one period of the tile, and any size painted from it.
+    let preview = |name: &str| image::open(d.join(name)).unwrap();
+    let lit = preview("fit-preview.png");
+    assert_eq!((lit.width(), lit.height()), (32, 32));
+    assert_eq!(lit.color(), image::ColorType::Rgb8);
+    let out = ipfn(
+        d,
+        &[
+            "synth",
+            "--model",
+            "fit/tile.ipfn",
+            "--size",
+            "48x40",
+            "-o",
+            "t.png",
+            "--preview",
+            "t-preview.png",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let lit = preview("t-preview.png").to_rgb8();
+    assert_eq!(lit.dimensions(), (48, 40));
+    // Lit relief, not a flat fill: the pixels differ.
+    let lum: Vec<f32> = lit
+        .pixels()
+        .map(|p| p.0.iter().map(|&v| v as f32).sum())
+        .collect();
+    let mean = lum.iter().sum::<f32>() / lum.len() as f32;
+    let spread = lum.iter().map(|v| (v - mean).abs()).sum::<f32>() / lum.len() as f32;
+    assert!(spread > 3.0, "a preview with relief varies ({spread})");
+}
+
+#[test]
+fn a_preview_is_refused_where_there_is_no_material() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // The shipped honeycomb is one image, not a map set.
+    let out = ipfn(
+        d,
+        &["synth", "--size", "16", "-o", "h.png", "--preview", "p.png"],
+    );
+    assert_error(&out, &["--preview", "no map set"]);
+    assert!(!d.join("h.png").exists() && !d.join("p.png").exists());
+    let out = ipfn(
+        d,
+        &["synth", "--size", "16", "-o", "h.png", "--preview", "p.jpg"],
+    );
+    assert_error(&out, &["--preview p.jpg", ".png"]);
+    let photo = Path::new(env!("CARGO_MANIFEST_DIR")).join("exemplars/honeycomb.png");
+    let photo = photo.to_str().unwrap();
+    let out = ipfn(
+        d,
+        &["fit", photo, "--iterations", "1", "--preview", "p.png"],
+    );
+    assert_error(&out, &["--preview", "--maps"]);
 }

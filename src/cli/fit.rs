@@ -50,6 +50,10 @@ pub struct FitArgs {
     /// Bits per channel of PNG output: 8 or 16.
     #[arg(long)]
     pub bits: Option<u8>,
+    /// With --maps: the fitted material lit as a plane (one light at a grazing angle, GGX
+    /// shading), as an 8-bit PNG of one period.
+    #[arg(long, value_name = "PNG")]
+    pub preview: Option<PathBuf>,
     /// Run folder (checkpoints, metrics.csv, tile.ipfn). Default runs/<photo name>-tile.
     #[arg(long, value_name = "DIR")]
     pub run: Option<PathBuf>,
@@ -112,6 +116,7 @@ impl FitArgs {
             period: self.period,
             out: self.out.clone(),
             bits: self.bits,
+            preview: self.preview.clone(),
             run: self.run.clone(),
             resume: self.resume.clone(),
             time: self.time.clone(),

@@ -83,3 +83,6 @@ pub fn run() -> Result<()> {
         Command::View(args) => view::view(args),
     }
 }
+
+#[cfg(test)]
+mod flag_tests;

@@ -10,7 +10,7 @@ use crate::device::DeviceChoice;
 use crate::error::Result;
 use crate::input_error;
 use crate::io::OutputFormat;
-use crate::maps::{MapFiles, MapOutput};
+use crate::maps::{MapFiles, MapOutput, preview};
 
 /// The time budget of a fit that names neither a budget nor a step count.
 pub const DEFAULT_FIT_TIME: &str = "10m";
@@ -31,6 +31,9 @@ pub struct FitRequest {
     /// The tile image; default `RUN/tile.png`.
     pub out: Option<PathBuf>,
     pub bits: Option<u8>,
+    /// `--preview`: the fitted map set's material lit, as an 8-bit PNG (one period, up to its
+    /// top-left 1024²).
+    pub preview: Option<PathBuf>,
     /// The run folder; default `runs/<photo name>-tile`.
     pub run: Option<PathBuf>,
     pub resume: Option<PathBuf>,
@@ -66,7 +69,7 @@ pub struct OpenedFit {
 pub struct FitOutcome {
     /// `RUN/tile.ipfn`, the tile's model.
     pub model: PathBuf,
-    /// The tile image(s): one file, or one per map.
+    /// The tile image(s): one file, or one per map; then the preview, if asked for.
     pub images: Vec<PathBuf>,
     pub report: TileReport,
 }
@@ -77,8 +80,15 @@ impl FitRequest {
         let device = DeviceChoice::resolve(&self.device)?;
         let burn_device = device.burn_device()?;
         self.check_bits()?;
+        self.check_preview()?;
         if let Some(dir) = &self.resume {
             let fitter = Fitter::resume(dir, burn_device)?;
+            if self.preview.is_some() && fitter.maps().is_none() {
+                return Err(input_error!(
+                    "--preview lights a material's maps: {} fits one photo, not a map set; drop --preview",
+                    dir.display()
+                ));
+            }
             let lines = vec![format!(
                 "resuming {} at stage {}, step {}",
                 dir.display(),
@@ -139,11 +149,31 @@ impl FitRequest {
         let period = fitter.net.shape.period;
         painter.write(&outputs, [0, 0], period, crate::synth::DEFAULT_BAND_PIXELS)?;
         let report = TileReport::of(&painter, fitter.photo(), fitter.mask(), &fitter.config)?;
+        let mut images: Vec<PathBuf> = outputs.into_iter().map(|o| o.path).collect();
+        if let (Some(path), Some(set)) = (&self.preview, fitter.maps()) {
+            let region = preview::region(period);
+            preview::write(path, set, &painter.render([0, 0], region), region)?;
+            images.push(path.clone());
+        }
         Ok(FitOutcome {
             model,
-            images: outputs.into_iter().map(|o| o.path).collect(),
+            images,
             report,
         })
+    }
+
+    /// `--preview` needs a map set and a .png.
+    fn check_preview(&self) -> Result<()> {
+        let Some(path) = &self.preview else {
+            return Ok(());
+        };
+        crate::maps::preview::check_path(path)?;
+        if self.photo.is_some() {
+            return Err(input_error!(
+                "--preview lights a material's maps (give --maps): a single photo's tile is its own picture; drop --preview"
+            ));
+        }
+        crate::io::check_destination(path).map(drop)
     }
 
     fn check_bits(&self) -> Result<()> {

@@ -5,6 +5,7 @@
 //! evaluation, and the maps are cut from that evaluation.
 
 mod files;
+pub mod preview;
 mod role;
 
 use std::ops::Range;

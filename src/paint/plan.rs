@@ -8,7 +8,7 @@ use crate::device::DeviceChoice;
 use crate::error::Result;
 use crate::fit::TilePainter;
 use crate::io::{OutputFormat, VolumeFormat};
-use crate::maps::MapOutput;
+use crate::maps::{MapOutput, MapSet, preview};
 use crate::synth::{DEFAULT_BAND_PIXELS, Painter};
 
 /// A checked synthesis: what is painted, by what, into which files.
@@ -19,6 +19,8 @@ pub struct SynthPlan {
     pub out: PathBuf,
     pub seed: u64,
     pub device: DeviceChoice,
+    /// `--preview`: the material's picture, and the maps it is lit from.
+    pub(super) preview: Option<(PathBuf, MapSet)>,
     pub(super) target: Target,
 }
 
@@ -151,6 +153,9 @@ impl SynthPlan {
     /// Checks that every output file can be written (its folder exists, its format holds the
     /// size) before any work: the command line calls it before saying what it paints.
     pub fn check_destinations(&self) -> Result<()> {
+        if let Some((path, _)) = &self.preview {
+            crate::io::check_destination(path)?;
+        }
         match &self.target {
             Target::Image { size, outputs, .. } | Target::Tile { size, outputs, .. } => {
                 crate::maps::check_outputs(outputs, size[1], size[0])
@@ -168,6 +173,45 @@ impl SynthPlan {
     /// `progress(rows_done)` after each band of an image. Returns the line saying what was
     /// written (the time is the caller's to add).
     pub fn write(&self, progress: impl FnMut(usize)) -> Result<String> {
+        let written = self.write_outputs(progress)?;
+        match &self.preview {
+            Some((path, set)) => {
+                let size = self.write_preview(path, set)?;
+                Ok(format!(
+                    "{written}; preview {} ({}x{})",
+                    path.display(),
+                    size[1],
+                    size[0]
+                ))
+            }
+            None => Ok(written),
+        }
+    }
+
+    /// Paints the top-left of the image (up to [`preview::MAX_PREVIEW_SIDE`] a side) again and
+    /// writes its material lit ([`preview`]). Returns its size.
+    fn write_preview(&self, path: &Path, set: &MapSet) -> Result<[usize; 2]> {
+        let (values, region) = match &self.target {
+            Target::Image { painter, size, .. } => {
+                let region = preview::region(*size);
+                (painter.render(&[0, 0], &region), region)
+            }
+            Target::Tile {
+                painter,
+                origin,
+                size,
+                ..
+            } => {
+                let region = preview::region(*size);
+                (painter.render(*origin, region), region)
+            }
+            _ => unreachable!("the request gives a preview to images and tiles only"),
+        };
+        preview::write(path, set, &values, region)?;
+        Ok(region)
+    }
+
+    fn write_outputs(&self, progress: impl FnMut(usize)) -> Result<String> {
         self.check_destinations()?;
         let out = self.out.display();
         match &self.target {

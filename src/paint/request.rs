@@ -87,6 +87,8 @@ pub struct SynthRequest {
     pub guide: Option<String>,
     /// `--out`; default `synth.png`, or `synth.npy` for a volume.
     pub out: Option<PathBuf>,
+    /// `--preview`: a map set's material lit, as an 8-bit PNG (up to its top-left 1024²).
+    pub preview: Option<PathBuf>,
     pub bits: Option<u8>,
     pub zarr: ZarrOptions,
     pub device: DeviceChoice,
@@ -115,6 +117,7 @@ impl Default for SynthRequest {
             noise_scale: 1.0,
             guide: None,
             out: None,
+            preview: None,
             bits: None,
             zarr: ZarrOptions::default(),
             device: DeviceChoice::Cpu,
@@ -193,8 +196,33 @@ impl SynthRequest {
             out: self.out_path(),
             seed: self.seed,
             device: self.device,
+            preview: self.preview_of(model)?,
             target,
         })
+    }
+
+    /// `--preview`: where the material's picture goes, and the maps it is lit from.
+    fn preview_of(&self, model: &ModelFile) -> Result<Option<(PathBuf, MapSet)>> {
+        let Some(path) = &self.preview else {
+            return Ok(None);
+        };
+        crate::maps::preview::check_path(path)?;
+        let set = match model {
+            _ if self.slice.is_some() || self.depth().is_some() => None,
+            ModelFile::Generator(m) => m.maps.clone(),
+            ModelFile::Tile {
+                checkpoint,
+                description,
+                ..
+            } => MapSet::read_from(checkpoint, Path::new(description))?,
+        };
+        match set {
+            Some(set) => Ok(Some((path.clone(), set))),
+            None => Err(input_error!(
+                "--preview lights a material's maps (colour, normal, roughness, ...): {} paints no map set; drop --preview",
+                model.description()
+            )),
+        }
     }
 
     fn image_target(&self, model: &ModelFile, size: [usize; 2]) -> Result<Target> {
@@ -420,6 +448,12 @@ impl SynthRequest {
     /// 3D one), the array's shape in array order, and the chunk side.
     pub fn zarr_painter(&self, model: &ModelFile) -> Result<(Painter, Vec<usize>, usize)> {
         use crate::io::zarr::{DEFAULT_IMAGE_CHUNK, DEFAULT_VOLUME_CHUNK};
+        if self.preview.is_some() {
+            return Err(input_error!(
+                "{}: --preview lights a map set's maps, which are written as .png or .exr, not as a Zarr store; drop --preview",
+                self.out_path().display()
+            ));
+        }
         if self.slice.is_some() || self.mesh.is_some() {
             return Err(input_error!(
                 "{}: --slice and --mesh write an image or a mesh, not a Zarr store: drop them, or give a .png or .obj",

@@ -81,6 +81,11 @@ pub struct SynthArgs {
     /// for a volume.
     #[arg(long = "out", short = 'o', value_name = "PATH")]
     pub out_path: Option<PathBuf>,
+    /// A map set's material lit as a plane (colour, normal or height, roughness, AO, metalness;
+    /// one light at a grazing angle, GGX shading), as an 8-bit PNG of the painted image (its
+    /// top-left 1024² when larger).
+    #[arg(long, value_name = "PNG")]
+    pub preview: Option<PathBuf>,
     /// Bits per channel for PNG output: 8 or 16. Default 8; a map set's maps keep their
     /// inputs' depth. For .zarr: 8 or 16 store unsigned integers, as PNG; default float32.
     #[arg(long)]
@@ -203,6 +208,7 @@ impl SynthArgs {
             noise_scale: self.noise_scale,
             guide: self.guide.clone(),
             out: self.out_path.clone(),
+            preview: self.preview.clone(),
             bits: self.bits,
             zarr: ZarrOptions {
                 chunk: self.chunk,
