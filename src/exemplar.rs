@@ -121,6 +121,20 @@ impl Exemplar {
         }
     }
 
+    /// The channels `range` of every pixel: one map of a map set's stacked exemplar.
+    pub fn select(&self, range: std::ops::Range<usize>) -> Self {
+        let c = self.channels;
+        Self {
+            channels: range.len(),
+            values: self
+                .values
+                .chunks_exact(c)
+                .flat_map(|p| p[range.clone()].iter().copied())
+                .collect(),
+            ..*self
+        }
+    }
+
     /// The exemplar's extent over its last `axes` axes, in array order: `[height, width]` or
     /// `[depth, height, width]`.
     pub fn shape(&self, axes: usize) -> Vec<usize> {

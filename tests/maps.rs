@@ -575,3 +575,40 @@ fn a_preview_is_refused_where_there_is_no_material() {
     );
     assert_error(&out, &["--preview", "--maps"]);
 }
+
+#[test]
+fn a_map_set_trains_with_the_cpu_recipe_and_is_scored_like_an_image() {
+    let dir = setup();
+    let d = dir.path();
+    let out = ipfn(
+        d,
+        &[
+            "train",
+            "--maps",
+            "mat",
+            "--iterations",
+            "4",
+            "--checkpoint-every",
+            "2",
+            "--device",
+            "cpu",
+            "--out",
+            "run",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let said = stderr(&out);
+    // The CPU's network, crop and scale, and the recipe's measures of the colour map.
+    assert!(said.contains("resize, crop as configs/cpu.toml"), "{said}");
+    assert!(said.contains("batch 8, crop 32"), "{said}");
+    assert!(said.contains("exemplar 128x128: period"), "{said}");
+    assert!(said.contains("structure floor"), "{said}");
+    // Scored at each checkpoint, and the best kept.
+    let row = common::last_metrics_row(&d.join("run"));
+    let header = std::fs::read_to_string(d.join("run/metrics.csv")).unwrap();
+    let header: Vec<&str> = header.lines().next().unwrap().split(',').collect();
+    let at = |name: &str| row[header.iter().position(|h| *h == name).unwrap()];
+    assert!(at("sifid").is_finite() && at("sifid") > 0.0);
+    assert!(at("structure").is_finite() && at("structure") > 0.0);
+    assert!(d.join("run/best.ipfn").exists());
+}

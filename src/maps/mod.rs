@@ -98,6 +98,17 @@ impl MapSet {
             .collect()
     }
 
+    /// The map that stands for the set where one picture is needed (the recipe's measures,
+    /// SIFID): its colour map, else its first map of three or more channels, else its first.
+    pub fn colour_map(&self) -> usize {
+        let colour = self
+            .maps
+            .iter()
+            .position(|m| m.role == Some(MapRole::Color));
+        let rgb = self.maps.iter().position(|m| m.channels >= 3 && !m.normal);
+        colour.or(rgb).unwrap_or(0)
+    }
+
     /// The set stored in a model file, if it is a map-set model.
     pub fn read_from(checkpoint: &Checkpoint, path: &Path) -> Result<Option<Self>> {
         let Some(json) = checkpoint.metadata.get(MAPS_KEY) else {

@@ -27,10 +27,12 @@
 //! a visible grid.
 
 mod fft;
+mod map_set;
 mod sifid;
 mod structure;
 mod tiles;
 
+pub use map_set::*;
 pub use sifid::*;
 pub use structure::*;
 pub use tiles::*;
@@ -230,6 +232,11 @@ fn exemplar_features(
             config.channels
         ));
     }
+    stem_gaussian(exemplar)
+}
+
+/// The Gaussian of an image's stem features (values in [-1, 1], `[h, w, c]`).
+fn stem_gaussian(exemplar: &crate::exemplar::Exemplar) -> Result<Gaussian> {
     let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
     let features = InceptionStem::embedded().features(&to_unit_rgb(&exemplar.values, c)?, h, w)?;
     Gaussian::fit(&features)

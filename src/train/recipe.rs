@@ -210,11 +210,14 @@ pub fn settle(
 ) -> crate::Result<Vec<String>> {
     config.time_budget()?;
     let mut lines = Vec::new();
-    // The preset's scale and crop go together, and were tuned on single images: map sets,
-    // volumes and a run that sets either keep their own.
-    let scale_and_crop = matches!(source, super::ExemplarSource::Image(_))
-        && !explicit.contains("resize")
-        && !explicit.contains("crop");
+    // The preset's scale and crop go together, and were tuned on single images: map sets take
+    // them too (measured on their colour map), volumes and a run that sets either keep their
+    // own.
+    let flat = matches!(
+        source,
+        super::ExemplarSource::Image(_) | super::ExemplarSource::Maps(_)
+    );
+    let scale_and_crop = flat && !explicit.contains("resize") && !explicit.contains("crop");
     // K's own rate was measured on plain 2D images: solid textures, guided runs, map sets and
     // volumes keep K at the weights' rate.
     let plain_image = matches!(source, super::ExemplarSource::Image(_))
@@ -244,10 +247,24 @@ pub fn settle(
             free.join(", ")
         ));
     }
-    if let super::ExemplarSource::Image(path) = source {
-        let exemplar = crate::exemplar::read_exemplar(path)?;
-        let plain = !config.solid && config.guide.is_none();
-        lines.extend(apply(&measure(&exemplar), config, explicit, plain));
+    match source {
+        super::ExemplarSource::Image(path) => {
+            let exemplar = crate::exemplar::read_exemplar(path)?;
+            let plain = !config.solid && config.guide.is_none();
+            lines.extend(apply(&measure(&exemplar), config, explicit, plain));
+        }
+        super::ExemplarSource::Maps(files) => {
+            // The colour map's period sets the working scale for every map; the set is
+            // never trained as gray, whatever its colour map holds.
+            let (stacked, set) = files.load()?;
+            let range = set.ranges()[set.colour_map()].clone();
+            let measured = Measured {
+                gray: false,
+                ..measure(&stacked.select(range))
+            };
+            lines.extend(apply(&measured, config, explicit, config.guide.is_none()));
+        }
+        super::ExemplarSource::Volume(_) => {}
     }
     if !explicit.contains("iterations") && !explicit.contains("time") {
         config.time = Some(DEFAULT_TIME.into());

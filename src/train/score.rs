@@ -1,13 +1,15 @@
 //! Quality you can watch: at each checkpoint an image run scores its generator (SIFID and the
 //! structure distance of a few fixed-seed samples at the exemplar's own size against the
 //! exemplar), logs the scores in `metrics.csv` and the progress line, and keeps the
-//! best-scoring generator as `best.ipfn`.
+//! best-scoring generator as `best.ipfn`. A map set is scored as an image is, its SIFID on its
+//! colour map and its structure distance the mean of its maps'.
 
 use super::{ExemplarSource, RunKind, Trainer};
 use crate::device::DeviceChoice;
 use crate::error::Result;
 use crate::exemplar::{Exemplar, read_exemplar};
 use crate::latent::derive_seed;
+use crate::maps::MapSet;
 
 /// Scoring reads at most this many pixels a side of the exemplar (its centre), so a checkpoint
 /// of a large photo stays well under a second.
@@ -37,58 +39,102 @@ impl Score {
 
 impl Trainer {
     /// The exemplar as scoring sees it: at its own scale (the model paints there), gray for a
-    /// gray run, its centre at most [`SCORE_SIDE`] a side. `None` where a run is not scored:
-    /// volumes, solid textures, map sets, or `score_samples = 0`.
-    fn score_reference(&self) -> Result<Option<Exemplar>> {
-        let ExemplarSource::Image(path) = &self.source else {
-            return Ok(None);
-        };
+    /// gray run, its centre at most [`SCORE_SIDE`] a side; a map set's maps stacked, with the
+    /// set. `None` where a run is not scored: volumes, solid textures, guided runs, or
+    /// `score_samples = 0`.
+    fn score_reference(&self) -> Result<Option<(Exemplar, Option<MapSet>)>> {
         if !matches!(self.kind, RunKind::Image { guide: None }) || self.config.score_samples == 0 {
             return Ok(None);
         }
-        let mut exemplar = read_exemplar(path)?;
-        if self.config.gray && exemplar.channels >= 3 {
-            exemplar = exemplar.to_gray();
+        match &self.source {
+            ExemplarSource::Image(path) => {
+                let mut exemplar = read_exemplar(path)?;
+                if self.config.gray && exemplar.channels >= 3 {
+                    exemplar = exemplar.to_gray();
+                }
+                Ok(Some((exemplar.centre(SCORE_SIDE), None)))
+            }
+            ExemplarSource::Maps(files) => {
+                let (stacked, set) = files.load()?;
+                Ok(Some((stacked.centre(SCORE_SIDE), Some(set))))
+            }
+            ExemplarSource::Volume(_) => Ok(None),
         }
-        Ok(Some(exemplar.centre(SCORE_SIDE)))
     }
 
     /// SIFID and structure distance (means over `score_samples` fixed seeds) of the current
     /// generator against the exemplar at its own size, and how strongly those samples repeat
     /// (the mean of [`crate::metrics::repeat_strength`] over rows and columns: a grid the SIFID
-    /// does not see shows there); `None` for runs that are not scored.
+    /// does not see shows there); `None` for runs that are not scored. A map set's SIFID and
+    /// repeat are its colour map's, its structure distance the mean of its maps'
+    /// ([`crate::metrics::map_set_scores`]).
     pub fn score(&self) -> Result<Option<Score>> {
-        let Some(reference) = self.score_reference()? else {
+        let Some((reference, set)) = self.score_reference()? else {
             return Ok(None);
         };
         let (config, weights) = self.model();
         let seed = derive_seed(self.config.seed, &[SCORE_STREAM]);
-        let scores = crate::metrics::sample_scores(
-            &config,
-            &weights,
-            &reference,
-            self.config.score_samples,
-            seed,
-            DeviceChoice::Cpu,
-        )?;
+        let samples = self.config.score_samples;
+        let (scores, structure) = match &set {
+            None => {
+                let scores = crate::metrics::sample_scores(
+                    &config,
+                    &weights,
+                    &reference,
+                    samples,
+                    seed,
+                    DeviceChoice::Cpu,
+                )?;
+                let structure = scores.structure.mean;
+                (scores, structure)
+            }
+            Some(set) => {
+                let scores = crate::metrics::map_set_scores(
+                    &config,
+                    &weights,
+                    &reference,
+                    set,
+                    samples,
+                    seed,
+                    DeviceChoice::Cpu,
+                )?;
+                let structure = mean(scores.structure.iter().map(|s| s.mean));
+                (scores.colour, structure)
+            }
+        };
         Ok(Some(Score {
             sifid: scores.sifid.mean,
-            structure: scores.structure.mean,
+            structure,
             repeat: (scores.repeat[0] + scores.repeat[1]) / 2.0,
         }))
     }
 
     /// The exemplar's structure floor as scoring sees it ([`crate::metrics::structure_floor`]
-    /// of the scored reference): the structure distance a generator that paints the
-    /// exemplar's own structure can expect. `None` for runs that are not scored.
+    /// of the scored reference; a map set's, the mean of its maps'): the structure distance a
+    /// generator that paints the exemplar's own structure can expect. `None` for runs that are
+    /// not scored.
     pub fn structure_floor(&self) -> Result<Option<f64>> {
-        Ok(self
-            .score_reference()?
-            .map(|r| crate::metrics::structure_floor(&r.values, r.height, r.width, r.channels)))
+        let Some((r, set)) = self.score_reference()? else {
+            return Ok(None);
+        };
+        let floor = |v: &[f32], c| crate::metrics::structure_floor(v, r.height, r.width, c);
+        Ok(Some(match set {
+            None => floor(&r.values, r.channels),
+            Some(set) => mean(
+                set.ranges()
+                    .iter()
+                    .map(|range| floor(&r.select(range.clone()).values, range.len())),
+            ),
+        }))
     }
 
     /// The best [`Score::combined`] so far and the iteration that reached it.
     pub fn best(&self) -> Option<(f64, u64)> {
         self.best
     }
+}
+
+fn mean(values: impl Iterator<Item = f64>) -> f64 {
+    let (sum, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+    sum / n.max(1) as f64
 }
