@@ -65,7 +65,7 @@ impl EvalRequest {
                     ..crate::fit::TilePainter::new(net)
                 };
                 let config = crate::fit::FitConfig::default();
-                let report = TileReport::of(&painter, &exemplar, None, &config)
+                let report = TileReport::of(&painter, &exemplar, None, &config, None)
                     .map_err(|e| in_file(e, &self.exemplar))
                     .map_err(|e| input_error!("{e} (the tile: {description})"))?;
                 Ok(Report::Tile(report))

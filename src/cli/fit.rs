@@ -255,5 +255,20 @@ pub(super) fn fit(args: FitArgs) -> Result<()> {
         model.display(),
         model.display()
     ));
+    for map in &report.maps {
+        say(map_line(map));
+    }
     Ok(())
+}
+
+/// One map's PSNR and seam score, as the closing lines of a map set's fit say them.
+fn map_line(m: &crate::fit::MapTileReport) -> String {
+    let lines = match &m.seam_photo_lines {
+        Some(l) => format!(" (its own lines: {:.2} to {:.2})", l.p5, l.p95),
+        None => String::new(),
+    };
+    format!(
+        "  {}: PSNR {:.2} dB (interior {:.2} dB), seam score 2x2 {:.3}{lines}",
+        m.name, m.psnr, m.psnr_interior, m.seam_tile.overall
+    )
 }

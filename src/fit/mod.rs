@@ -32,7 +32,7 @@ use crate::input_error;
 use crate::maps::MapFiles;
 pub use network::{NetworkShape, PeriodicNet, StageShape};
 pub use render::TilePainter;
-pub use report::TileReport;
+pub use report::{MapTileReport, TileReport};
 pub use run::{FitEnd, Fitter};
 
 /// The settings of a fit. Every field has a default; `ipfn fit`'s flags set them.

@@ -7,6 +7,7 @@ use super::{FitConfig, TilePainter};
 use crate::error::Result;
 use crate::exemplar::Exemplar;
 use crate::input_error;
+use crate::maps::MapSet;
 use crate::metrics::{ScoreSpread, SeamScore};
 
 /// A fitted tile against its photo, as `ipfn eval --json` prints it.
@@ -24,6 +25,27 @@ pub struct TileReport {
     /// The spread of the photo's own lines' scores: a seam within it shows no more than a line
     /// of the photo does.
     pub seam_photo_lines: Option<ScoreSpread>,
+    /// A map set's maps, each measured alone (empty for a photo).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub maps: Vec<MapTileReport>,
+}
+
+/// One map of a fitted map set against that map of the scan.
+#[derive(Debug, Clone, Serialize)]
+pub struct MapTileReport {
+    pub name: String,
+    pub psnr: f64,
+    pub psnr_interior: f64,
+    pub seam_tile: SeamScore,
+    pub seam_photo_lines: Option<ScoreSpread>,
+}
+
+/// The channels `range` of every pixel of `values` (`[.., channels]`).
+fn pick(values: &[f32], channels: usize, range: &std::ops::Range<usize>) -> Vec<f32> {
+    values
+        .chunks_exact(channels)
+        .flat_map(|p| p[range.clone()].iter().copied())
+        .collect()
 }
 
 impl TileReport {
@@ -34,6 +56,7 @@ impl TileReport {
         photo: &Exemplar,
         mask: Option<&[f32]>,
         config: &FitConfig,
+        set: Option<&MapSet>,
     ) -> Result<Self> {
         let period = painter.net.shape.period;
         let (h, w, c) = (photo.height, photo.width, painter.net.shape.channels);
@@ -53,12 +76,36 @@ impl TileReport {
         };
         let band = super::target::seam_mask(h, w, config.seam_band_for([h, w]));
         let kept = |i: usize| mask.is_none_or(|m| m[i] > 0.5);
+        let maps = match set {
+            None => Vec::new(),
+            Some(set) => set
+                .maps
+                .iter()
+                .zip(set.ranges())
+                .map(|(map, r)| {
+                    let (t, o, p) = (
+                        pick(&tile, c, &r),
+                        pick(&one, c, &r),
+                        pick(&photo.values, c, &r),
+                    );
+                    let mc = r.len();
+                    Ok(MapTileReport {
+                        name: map.name.clone(),
+                        psnr: super::psnr(&t, &p, mc, kept),
+                        psnr_interior: super::psnr(&t, &p, mc, |i| kept(i) && band[i] == 0.0),
+                        seam_tile: crate::metrics::seam_score(&o, period[0], period[1], mc)?,
+                        seam_photo_lines: crate::metrics::line_score_spread(&p, h, w, mc),
+                    })
+                })
+                .collect::<Result<_>>()?,
+        };
         Ok(Self {
             psnr: super::psnr(&tile, &photo.values, c, kept),
             psnr_interior: super::psnr(&tile, &photo.values, c, |i| kept(i) && band[i] == 0.0),
             seam_tile: crate::metrics::seam_score(&one, period[0], period[1], c)?,
             seam_photo: crate::metrics::seam_score(&photo.values, h, w, c)?,
             seam_photo_lines: crate::metrics::line_score_spread(&photo.values, h, w, c),
+            maps,
         })
     }
 }

@@ -148,7 +148,13 @@ impl FitRequest {
         let painter = fitter.painter();
         let period = fitter.net.shape.period;
         painter.write(&outputs, [0, 0], period, crate::synth::DEFAULT_BAND_PIXELS)?;
-        let report = TileReport::of(&painter, fitter.photo(), fitter.mask(), &fitter.config)?;
+        let report = TileReport::of(
+            &painter,
+            fitter.photo(),
+            fitter.mask(),
+            &fitter.config,
+            fitter.maps(),
+        )?;
         let mut images: Vec<PathBuf> = outputs.into_iter().map(|o| o.path).collect();
         if let (Some(path), Some(set)) = (&self.preview, fitter.maps()) {
             let region = preview::region(period);
