@@ -610,5 +610,34 @@ fn a_map_set_trains_with_the_cpu_recipe_and_is_scored_like_an_image() {
     let at = |name: &str| row[header.iter().position(|h| *h == name).unwrap()];
     assert!(at("sifid").is_finite() && at("sifid") > 0.0);
     assert!(at("structure").is_finite() && at("structure") > 0.0);
+    // Each map's structure too, their mean the structure column; its floor printed per map.
+    let per_map: Vec<f32> = (header.iter())
+        .filter(|h| h.starts_with("structure_"))
+        .map(|h| at(h))
+        .collect();
+    let maps = header
+        .iter()
+        .filter(|h| h.starts_with("structure_"))
+        .count();
+    assert!(maps >= 2, "{header:?}");
+    assert!(
+        per_map.iter().all(|v| v.is_finite() && *v > 0.0),
+        "{per_map:?}"
+    );
+    let mean = per_map.iter().sum::<f32>() / maps as f32;
+    assert!(
+        (mean - at("structure")).abs() < 1e-5,
+        "{mean} {}",
+        at("structure")
+    );
+    let floor = said
+        .lines()
+        .find(|l| l.starts_with("structure floor"))
+        .unwrap();
+    let named = header.iter().filter_map(|h| h.strip_prefix("structure_"));
+    assert!(
+        named.clone().all(|n| floor.contains(&format!("{n} 0."))),
+        "{floor}"
+    );
     assert!(d.join("run/best.ipfn").exists());
 }

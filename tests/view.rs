@@ -72,6 +72,12 @@ fn tiles_of_map_sets_guided_and_3d_models_equal_synth() {
     let viewer = view(d, &["maps/latest.ipfn"]);
     let (_, png) = fetch(&viewer, "GET", "/tile?map=1&size=64&x=32&y=-64&seed=2");
     let tile = pixels(&png);
+    // After the maps, the material lit, as synth --preview renders it.
+    let (_, png) = fetch(&viewer, "GET", "/tile?map=2&size=64&x=32&y=-64&seed=2");
+    let lit = pixels(&png);
+    let (status, text) = fetch(&viewer, "GET", "/tile?map=3");
+    assert_eq!(status, 400, "{}", String::from_utf8_lossy(&text));
+    assert!(String::from_utf8_lossy(&text).contains("2 map(s) and the lit material"));
     let out = ipfn(
         d,
         &[
@@ -87,6 +93,8 @@ fn tiles_of_map_sets_guided_and_3d_models_equal_synth() {
             "64",
             "--bits",
             "8",
+            "--preview",
+            "m-lit.png",
             "--out",
             "m.png",
         ],
@@ -94,6 +102,8 @@ fn tiles_of_map_sets_guided_and_3d_models_equal_synth() {
     assert!(out.status.success(), "{}", stderr(&out));
     let expected = pixels(&std::fs::read(d.join("m-normal.png")).unwrap());
     assert_same(&tile, &expected, "the normal map's tile");
+    let expected = pixels(&std::fs::read(d.join("m-lit.png")).unwrap());
+    assert_same(&lit, &expected, "the lit material's tile");
     drop(viewer);
 
     // A solid texture: planes across z and across y.

@@ -86,7 +86,8 @@ def train(
     on_progress: called after every iteration with a dict: `iteration`, `iterations` (the
         planned total), `wasserstein`, `penalty`, `generator_loss`, `k`,
         `iterations_per_second`, at checkpoints `sifid`, `structure` and `repeat` (else
-        None), `run_dir`, and `preview` (the preview image written at this iteration, a float32
+        None), `map_structure` (a map set's structure distance per map at checkpoints, else
+        an empty list), `run_dir`, and `preview` (the preview image written at this iteration, a float32
         array in [-1, 1], else None). Returning `False` stops the run after a checkpoint.
     resume: a run folder to continue exactly where it stopped (give `time` or `iterations` for
         its new length; settings that shape the model cannot change).

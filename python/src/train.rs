@@ -112,6 +112,7 @@ fn report(
         info.set_item("sifid", stats.sifid)?;
         info.set_item("structure", stats.structure)?;
         info.set_item("repeat", stats.repeat)?;
+        info.set_item("map_structure", stats.map_structure.clone())?;
         info.set_item("run_dir", trainer.run_dir())?;
         info.set_item("preview", preview(py, trainer, stats.iteration)?)?;
         let answer = callback.call1(py, (info,))?;

@@ -7,9 +7,9 @@ use std::time::Instant;
 use clap::Args;
 
 use crate::error::Result;
-use crate::fit::FitEnd;
 use crate::fit::request::{FitOutcome, FitRequest, OpenedFit};
 use crate::fit::run::Progress;
+use crate::fit::{FitEnd, Fitter};
 
 #[derive(Debug, Args)]
 pub struct FitArgs {
@@ -162,21 +162,51 @@ pub(super) fn fit(args: FitArgs) -> Result<()> {
         lines,
     } = request.open()?;
     lines.into_iter().for_each(say);
-    let device_name = crate::bench::device_name(device);
+    say(plan_line(&fitter, device));
+    crate::stop::install(crate::stop::OnSignal::FinishStep);
+    let start = Instant::now();
+    let end = run_with_progress(&mut fitter, deadline, args.quiet)?;
+    let run = fitter.run_dir().to_path_buf();
+    match end {
+        FitEnd::Stopped => return Err(stopped(&fitter, &run)),
+        FitEnd::BudgetSpent => say(format!(
+            "the time budget ran out at stage {}, step {}; the tile holds what was fitted (`ipfn fit --resume {}` finishes the plan)",
+            fitter.stage + 1,
+            fitter.iteration,
+            run.display()
+        )),
+        _ => {}
+    }
+    let fitted = start.elapsed().as_secs_f64();
+    let outcome = request.finish(&fitter)?;
+    say(closing_line(&outcome, fitted));
+    outcome.report.maps.iter().for_each(|m| say(map_line(m)));
+    Ok(())
+}
+
+/// What is fitted, how, and where.
+fn plan_line(fitter: &Fitter, device: crate::device::DeviceChoice) -> String {
     let [h, w] = fitter.net.shape.period;
     let params = fitter.net.shape.parameters();
-    say(format!(
-        "fitting {}x{w}x{h} tile: {} stages, band limit {}, {params} parameters ({:.2} per pixel), {:?} steps per stage, {device_name}; run folder {}",
+    format!(
+        "fitting {}x{w}x{h} tile: {} stages, band limit {}, {params} parameters ({:.2} per pixel), {:?} steps per stage, {}; run folder {}",
         fitter.photo().channels,
         fitter.net.stages(),
         fitter.config.band([h, w]),
         params as f64 / (h * w) as f64,
         fitter.config.iterations,
+        crate::bench::device_name(device),
         fitter.run_dir().display()
-    ));
-    crate::stop::install(crate::stop::OnSignal::FinishStep);
-    let start = Instant::now();
-    let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
+    )
+}
+
+/// Runs the fit with a progress bar on a terminal, a line per checkpoint elsewhere.
+fn run_with_progress(
+    fitter: &mut Fitter,
+    deadline: Option<Instant>,
+    quiet: bool,
+) -> Result<FitEnd> {
+    let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
         let bar = indicatif::ProgressBar::new(fitter.stage_iterations());
         bar.set_style(
             indicatif::ProgressStyle::with_template(
@@ -188,9 +218,7 @@ pub(super) fn fit(args: FitArgs) -> Result<()> {
     });
     let mut psnr = f64::NAN;
     let end = fitter.run(crate::stop::flag(), deadline, |p: &Progress| {
-        if let Some(v) = p.psnr {
-            psnr = v;
-        }
+        psnr = p.psnr.unwrap_or(psnr);
         let line = format!("loss {:.3e}  psnr {psnr:.2} dB", p.loss);
         match &bar {
             Some(bar) => {
@@ -199,7 +227,7 @@ pub(super) fn fit(args: FitArgs) -> Result<()> {
                 bar.set_position(p.iteration);
                 bar.set_message(line);
             }
-            None if !args.quiet && p.psnr.is_some() => eprintln!(
+            None if !quiet && p.psnr.is_some() => eprintln!(
                 "stage {}/{} step {}/{}  {line}",
                 p.stage + 1,
                 p.stages,
@@ -212,53 +240,46 @@ pub(super) fn fit(args: FitArgs) -> Result<()> {
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }
-    let run = fitter.run_dir().to_path_buf();
-    if end == FitEnd::Stopped {
-        let signal = crate::stop::signal().unwrap_or(2);
-        return Err(crate::Error::Interrupted(
-            format!(
-                "{} at stage {}, step {}; saved {}; continue with `ipfn fit --resume {}`",
-                crate::stop::name(signal),
-                fitter.stage + 1,
-                fitter.iteration,
-                run.join("latest.ipfn").display(),
-                run.display()
-            ),
-            signal,
-        ));
-    }
-    if end == FitEnd::BudgetSpent {
-        say(format!(
-            "the time budget ran out at stage {}, step {}; the tile holds what was fitted (`ipfn fit --resume {}` finishes the plan)",
+    Ok(end)
+}
+
+/// The error a stopped fit ends with: where it stopped and how to continue.
+fn stopped(fitter: &Fitter, run: &std::path::Path) -> crate::Error {
+    let signal = crate::stop::signal().unwrap_or(2);
+    crate::Error::Interrupted(
+        format!(
+            "{} at stage {}, step {}; saved {}; continue with `ipfn fit --resume {}`",
+            crate::stop::name(signal),
             fitter.stage + 1,
             fitter.iteration,
+            run.join("latest.ipfn").display(),
             run.display()
-        ));
-    }
-    let fitted = start.elapsed().as_secs_f64();
-    let FitOutcome {
-        model,
-        images,
-        report,
-    } = request.finish(&fitter)?;
+        ),
+        signal,
+    )
+}
+
+/// The fit's closing line: how well the tile matches and tiles, and what was written.
+fn closing_line(outcome: &FitOutcome, seconds: f64) -> String {
+    let report = &outcome.report;
     let lines = match &report.seam_photo_lines {
         Some(l) => format!(" (the photo's own lines: {:.2} to {:.2})", l.p5, l.p95),
         None => String::new(),
     };
-    let images: Vec<String> = images.iter().map(|p| p.display().to_string()).collect();
-    say(format!(
-        "fitted in {fitted:.1} s: PSNR {:.2} dB (interior {:.2} dB), seam score 2x2 {:.3}{lines}; wrote {} and {} (paint any size: ipfn synth --model {})",
+    let images: Vec<String> = outcome
+        .images
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    format!(
+        "fitted in {seconds:.1} s: PSNR {:.2} dB (interior {:.2} dB), seam score 2x2 {:.3}{lines}; wrote {} and {} (paint any size: ipfn synth --model {})",
         report.psnr,
         report.psnr_interior,
         report.seam_tile.overall,
         images.join(", "),
-        model.display(),
-        model.display()
-    ));
-    for map in &report.maps {
-        say(map_line(map));
-    }
-    Ok(())
+        outcome.model.display(),
+        outcome.model.display()
+    )
 }
 
 /// One map's PSNR and seam score, as the closing lines of a map set's fit say them.

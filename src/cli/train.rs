@@ -8,7 +8,7 @@ use clap::Args;
 
 use crate::error::Result;
 use crate::train::request::{OpenedRun, TrainRequest};
-use crate::train::{RunEnd, TrainOverrides};
+use crate::train::{RunEnd, TrainOverrides, Trainer};
 
 #[derive(Debug, Args)]
 pub struct TrainArgs {
@@ -93,23 +93,11 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
     };
     let OpenedRun {
         mut trainer,
-        device: choice,
+        device,
         lines,
     } = args.request().open()?;
     lines.into_iter().for_each(say);
-    let total = trainer.config.iterations;
-    let length = match &trainer.config.time {
-        Some(time) => time.clone(),
-        None => format!("{total} iterations"),
-    };
-    say(format!(
-        "training {} -> {} ({length}, batch {}, crop {}, {})",
-        trainer.run_dir().display(),
-        trainer.run_dir().join("latest.ipfn").display(),
-        trainer.config.batch,
-        trainer.config.crop,
-        crate::bench::device_name(choice)
-    ));
+    say(start_line(&trainer, device));
     say(format!(
         "watch it in a browser: ipfn view {}",
         trainer.run_dir().display()
@@ -117,51 +105,18 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
     if !args.quiet
         && let Some(floor) = trainer.structure_floor()?
     {
-        say(format!(
-            "structure floor {floor:.3}: the exemplar's halves against the whole; checkpoints scoring near it paint its structure"
-        ));
+        say(floor_line(&floor));
     }
-
     crate::stop::install(crate::stop::OnSignal::FinishStep);
-    let stop = crate::stop::flag();
-    let bar = iteration_bar(!args.quiet, total, trainer.iteration);
-    let (start, first, log_every) = (Instant::now(), trainer.iteration, trainer.config.log_every);
-    let end = trainer.run(stop, |trainer, stats| {
-        let (it, total) = (stats.iteration, trainer.config.iterations);
-        let line = stats.summary();
-        match &bar {
-            Some(bar) => {
-                bar.set_length(total);
-                bar.set_position(it);
-                bar.set_message(line);
-            }
-            None if !args.quiet
-                && (it.is_multiple_of(log_every) || it == total || stats.sifid.is_some()) =>
-            {
-                eprintln!(
-                    "iter {it}/{total}  {line}  {:.3} it/s",
-                    stats.iterations_per_second
-                );
-            }
-            None => {}
-        }
-    })?;
+    let (start, first) = (Instant::now(), trainer.iteration);
+    let bar = iteration_bar(!args.quiet, trainer.config.iterations, first);
+    let end = run_with_progress(&mut trainer, bar.as_ref(), args.quiet)?;
     let latest = trainer.run_dir().join("latest.ipfn");
     if end == RunEnd::Stopped {
         if let Some(bar) = &bar {
             bar.abandon();
         }
-        let signal = crate::stop::signal().unwrap_or(2);
-        return Err(crate::Error::Interrupted(
-            format!(
-                "{} at iteration {}; saved {}; continue with `ipfn train --resume {}`",
-                crate::stop::name(signal),
-                trainer.iteration,
-                latest.display(),
-                trainer.run_dir().display()
-            ),
-            signal,
-        ));
+        return Err(stopped(&trainer));
     }
     if let Some(bar) = bar {
         bar.finish_and_clear();
@@ -174,6 +129,82 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
         trainer.run_dir().join("report.html").display()
     ));
     Ok(())
+}
+
+/// What is trained, for how long, how, and where.
+fn start_line(trainer: &Trainer, device: crate::device::DeviceChoice) -> String {
+    let length = match &trainer.config.time {
+        Some(time) => time.clone(),
+        None => format!("{} iterations", trainer.config.iterations),
+    };
+    format!(
+        "training {} -> {} ({length}, batch {}, crop {}, {})",
+        trainer.run_dir().display(),
+        trainer.run_dir().join("latest.ipfn").display(),
+        trainer.config.batch,
+        trainer.config.crop,
+        crate::bench::device_name(device)
+    )
+}
+
+/// The structure floor, a map set's per map too: what checkpoints can hope to score.
+fn floor_line(floor: &crate::train::score::StructureFloor) -> String {
+    let per_map: Vec<String> = (floor.maps.iter())
+        .map(|(name, f)| format!("{name} {f:.3}"))
+        .collect();
+    let per_map = match per_map.is_empty() {
+        true => String::new(),
+        false => format!(" ({})", per_map.join(", ")),
+    };
+    format!(
+        "structure floor {:.3}{per_map}: the exemplar's halves against the whole; checkpoints scoring near it paint its structure",
+        floor.mean
+    )
+}
+
+/// Runs the training loop, moving `bar` (or printing a line every `log_every` iterations and
+/// at each score where there is no bar).
+fn run_with_progress(
+    trainer: &mut Trainer,
+    bar: Option<&indicatif::ProgressBar>,
+    quiet: bool,
+) -> Result<RunEnd> {
+    let log_every = trainer.config.log_every;
+    trainer.run(crate::stop::flag(), |trainer, stats| {
+        let (it, total) = (stats.iteration, trainer.config.iterations);
+        let line = stats.summary();
+        match bar {
+            Some(bar) => {
+                bar.set_length(total);
+                bar.set_position(it);
+                bar.set_message(line);
+            }
+            None if !quiet
+                && (it.is_multiple_of(log_every) || it == total || stats.sifid.is_some()) =>
+            {
+                eprintln!(
+                    "iter {it}/{total}  {line}  {:.3} it/s",
+                    stats.iterations_per_second
+                );
+            }
+            None => {}
+        }
+    })
+}
+
+/// The error a stopped run ends with: where it stopped and how to continue.
+fn stopped(trainer: &Trainer) -> crate::Error {
+    let signal = crate::stop::signal().unwrap_or(2);
+    crate::Error::Interrupted(
+        format!(
+            "{} at iteration {}; saved {}; continue with `ipfn train --resume {}`",
+            crate::stop::name(signal),
+            trainer.iteration,
+            trainer.run_dir().join("latest.ipfn").display(),
+            trainer.run_dir().display()
+        ),
+        signal,
+    )
 }
 
 /// A progress bar over `total` iterations starting at `position`, on a terminal when `show`.

@@ -8,6 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use super::draws::stream;
+use super::score::Score;
 use super::step::IterationStats;
 use super::{RunKind, Trainer};
 use crate::checkpoint::{self, Checkpoint};
@@ -15,6 +16,7 @@ use crate::condition::DensityRamp;
 use crate::error::{Error, Result};
 use crate::io::write_png;
 use crate::latent::derive_seed;
+use crate::maps::MapSet;
 use crate::synth::Synth;
 
 /// Checkpoint metadata keys of the training state.
@@ -175,13 +177,14 @@ impl Trainer {
             let checkpoint = it.is_multiple_of(cfg.checkpoint_every) || it == total || stopped;
             let preview = it.is_multiple_of(cfg.preview_every) || it == total;
             let score = if checkpoint { self.score()? } else { None };
-            if let Some(s) = score {
+            if let Some(s) = &score {
                 (stats.sifid, stats.structure) = (Some(s.sifid), Some(s.structure));
                 stats.repeat = Some(s.repeat);
+                stats.map_structure = s.maps.clone();
             }
             self.append_metrics(&stats)?;
             if checkpoint {
-                self.keep_if_best(score.map(|s| s.combined()))?;
+                self.keep_if_best(score.as_ref().map(Score::combined))?;
                 self.save_checkpoint()?;
             }
             if preview {
@@ -193,7 +196,7 @@ impl Trainer {
             // is the last, so it is kept.
             if !checkpoint && stop.load(Ordering::SeqCst) {
                 let score = self.score()?;
-                self.keep_if_best(score.map(|s| s.combined()))?;
+                self.keep_if_best(score.as_ref().map(Score::combined))?;
                 self.save_checkpoint()?;
                 self.report("stopped");
                 return Ok(RunEnd::Stopped);
@@ -378,7 +381,7 @@ impl Trainer {
             self.config.to_toml().as_bytes(),
         )?;
         let metrics = self.run_dir.join("metrics.csv");
-        let mut kept = metrics_header(self.kind.generator_axes());
+        let mut kept = metrics_header(self.kind.generator_axes(), self.maps.as_ref());
         if let Ok(old) = std::fs::read_to_string(&metrics) {
             for line in old.lines().skip(1) {
                 let it: u64 = line
@@ -407,9 +410,17 @@ impl Trainer {
         let sifid = s.sifid.map(|v| v.to_string()).unwrap_or_default();
         let repeat = s.repeat.map(|v| v.to_string()).unwrap_or_default();
         let structure = s.structure.map(|v| v.to_string()).unwrap_or_default();
+        // A map set's per-map columns: empty where the row has no score.
+        let maps = self.maps.as_ref().map_or(0, |set| set.maps.len());
+        let per_map: String = (0..maps)
+            .map(|i| {
+                let v = s.map_structure.get(i).map(f64::to_string);
+                format!(",{}", v.unwrap_or_default())
+            })
+            .collect();
         writeln!(
             file,
-            "{},{},{},{},{},{},{sifid},{repeat},{structure}",
+            "{},{},{},{},{},{},{sifid},{repeat},{structure}{per_map}",
             s.iteration,
             s.wasserstein,
             s.penalty,
@@ -427,15 +438,27 @@ pub(super) fn create_dir(dir: &Path) -> Result<&Path> {
     Ok(dir)
 }
 
-/// Header of `metrics.csv` for a run over `dims` axes: one K column per axis. Columns added
-/// later go at the end, so the rows of a run from before them still read (as empty there).
-pub fn metrics_header(dims: usize) -> String {
+/// Header of `metrics.csv` for a run over `dims` axes: one K column per axis, and for a map
+/// set one structure column per map (`structure_NAME`). Columns added later go at the end, so
+/// the rows of a run from before them still read (as empty there).
+pub fn metrics_header(dims: usize, maps: Option<&MapSet>) -> String {
     let k = if dims == 3 {
         "k_depth,k_rows,k_cols"
     } else {
         "k_rows,k_cols"
     };
+    let per_map: String = maps
+        .map(|set| {
+            let column = |name: &str| -> String {
+                let safe = name
+                    .chars()
+                    .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' });
+                format!(",structure_{}", safe.collect::<String>())
+            };
+            set.maps.iter().map(|m| column(&m.name)).collect()
+        })
+        .unwrap_or_default();
     format!(
-        "iteration,wasserstein,penalty,generator_loss,{k},iterations_per_second,sifid,repeat,structure\n"
+        "iteration,wasserstein,penalty,generator_loss,{k},iterations_per_second,sifid,repeat,structure{per_map}\n"
     )
 }

@@ -19,7 +19,7 @@ pub const SCORE_SIDE: usize = 384;
 const SCORE_STREAM: u64 = 12;
 
 /// A checkpoint's scores.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Score {
     /// SIFID against the exemplar (lower is better).
     pub sifid: f64,
@@ -27,6 +27,18 @@ pub struct Score {
     pub structure: f64,
     /// How strongly the samples repeat (0 to 1); far above the exemplar's, a grid.
     pub repeat: f64,
+    /// A map set's structure distance per map, in the set's order (`structure` is their
+    /// mean); empty for an image.
+    pub maps: Vec<f64>,
+}
+
+/// The exemplar's structure floor as scoring sees it ([`Trainer::structure_floor`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StructureFloor {
+    /// The floor (a map set's: the mean of its maps').
+    pub mean: f64,
+    /// A map set's floor per map, named, in the set's order; empty for an image.
+    pub maps: Vec<(String, f64)>,
 }
 
 impl Score {
@@ -75,7 +87,7 @@ impl Trainer {
         let (config, weights) = self.model();
         let seed = derive_seed(self.config.seed, &[SCORE_STREAM]);
         let samples = self.config.score_samples;
-        let (scores, structure) = match &set {
+        let (scores, structure, maps) = match &set {
             None => {
                 let scores = crate::metrics::sample_scores(
                     &config,
@@ -86,7 +98,7 @@ impl Trainer {
                     DeviceChoice::Cpu,
                 )?;
                 let structure = scores.structure.mean;
-                (scores, structure)
+                (scores, structure, Vec::new())
             }
             Some(set) => {
                 let scores = crate::metrics::map_set_scores(
@@ -98,14 +110,15 @@ impl Trainer {
                     seed,
                     DeviceChoice::Cpu,
                 )?;
-                let structure = mean(scores.structure.iter().map(|s| s.mean));
-                (scores.colour, structure)
+                let maps: Vec<f64> = scores.structure.iter().map(|s| s.mean).collect();
+                (scores.colour, mean(maps.iter().copied()), maps)
             }
         };
         Ok(Some(Score {
             sifid: scores.sifid.mean,
             structure,
             repeat: (scores.repeat[0] + scores.repeat[1]) / 2.0,
+            maps,
         }))
     }
 
@@ -113,18 +126,28 @@ impl Trainer {
     /// of the scored reference; a map set's, the mean of its maps'): the structure distance a
     /// generator that paints the exemplar's own structure can expect. `None` for runs that are
     /// not scored.
-    pub fn structure_floor(&self) -> Result<Option<f64>> {
+    pub fn structure_floor(&self) -> Result<Option<StructureFloor>> {
         let Some((r, set)) = self.score_reference()? else {
             return Ok(None);
         };
         let floor = |v: &[f32], c| crate::metrics::structure_floor(v, r.height, r.width, c);
         Ok(Some(match set {
-            None => floor(&r.values, r.channels),
-            Some(set) => mean(
-                set.ranges()
-                    .iter()
-                    .map(|range| floor(&r.select(range.clone()).values, range.len())),
-            ),
+            None => StructureFloor {
+                mean: floor(&r.values, r.channels),
+                maps: Vec::new(),
+            },
+            Some(set) => {
+                let maps: Vec<(String, f64)> = (set.maps.iter().zip(set.ranges()))
+                    .map(|(m, range)| {
+                        let values = r.select(range.clone()).values;
+                        (m.name.clone(), floor(&values, range.len()))
+                    })
+                    .collect();
+                StructureFloor {
+                    mean: mean(maps.iter().map(|(_, f)| *f)),
+                    maps,
+                }
+            }
         }))
     }
 

@@ -43,6 +43,9 @@ pub struct IterationStats {
     pub structure: Option<f64>,
     /// How strongly the scored samples repeat at a checkpoint (0 to 1; see `Trainer::score`).
     pub repeat: Option<f64>,
+    /// A map set's structure distance per map at a checkpoint, in the set's order (empty
+    /// otherwise; `structure` is their mean).
+    pub map_structure: Vec<f64>,
     /// Where the iteration's time went.
     pub times: StepTimes,
 }

@@ -56,7 +56,8 @@ pub struct View {
     pub guide: Option<(String, [usize; 2])>,
     /// A density-controlled volume model's density.
     pub density: Option<f32>,
-    /// Which map of a map set (0 for other models).
+    /// Which map of a map set (0 for other models); one past the last map: the material lit
+    /// ([`crate::maps::preview`]).
     pub map: usize,
     /// A 3D model's plane: the axis across it (`x`, `y` or `z`) and its index.
     pub slice: (char, i64),
@@ -204,8 +205,17 @@ impl View {
         }
         let maps = model.maps.as_ref().map_or(1, |m| m.ranges().len());
         let map: usize = param(q, "map")?.unwrap_or(0);
-        if map >= maps {
-            return Err(input_error!("map {map}: the model has {maps} map(s)"));
+        // A map set's views are its maps and, after them, the material lit.
+        let views = if model.maps.is_some() { maps + 1 } else { 1 };
+        if map >= views {
+            return Err(input_error!(
+                "map {map}: the model has {maps} map(s){}",
+                if model.maps.is_some() {
+                    " and the lit material after them"
+                } else {
+                    ""
+                }
+            ));
         }
         Ok(Self {
             seed: param(q, "seed")?.unwrap_or(0),
@@ -270,6 +280,9 @@ impl View {
         if model.maps.is_some() {
             push(&mut args, "--bits", "8".into()); // as the tiles show them
         }
+        if self.lit(model) {
+            push(&mut args, "--preview", lit_path(out).display().to_string());
+        }
         if model.device != DeviceChoice::Cpu {
             push(
                 &mut args,
@@ -280,6 +293,22 @@ impl View {
         push(&mut args, "--out", out.display().to_string());
         args
     }
+}
+
+impl View {
+    /// Whether the view shows a map set's material lit rather than one of its maps.
+    pub fn lit(&self, model: &ViewModel) -> bool {
+        model
+            .maps
+            .as_ref()
+            .is_some_and(|set| self.map == set.maps.len())
+    }
+}
+
+/// Where an export to `out` writes the lit material: beside it, `-lit` added to its stem.
+pub fn lit_path(out: &Path) -> PathBuf {
+    let stem = out.file_stem().and_then(|s| s.to_str()).unwrap_or("view");
+    out.with_file_name(format!("{stem}-lit.png"))
 }
 
 /// A shell-ready rendering of `ipfn synth ARGS`.
@@ -397,7 +426,8 @@ impl ViewModel {
     }
 
     /// The `[rows, cols]` pixels at `(x, y)` of the view's plane as an 8-bit PNG: the chosen map
-    /// (normal maps renormalised), as `ipfn synth` writes it. In tile mode the tile is one whole
+    /// (normal maps renormalised), as `ipfn synth` writes it, or the material lit as
+    /// `ipfn synth --preview` renders it. In tile mode the tile is one whole
     /// period at the origin, whatever `(x, y)`.
     pub fn tile_png(
         &self,
@@ -425,6 +455,10 @@ impl ViewModel {
         };
         let c = self.config.channels;
         let (channels, normal) = match &self.maps {
+            Some(set) if view.map == set.maps.len() => {
+                let lit = crate::maps::preview::render(set, &values, [rows, cols]);
+                return encode_png(cols, rows, 3, &lit);
+            }
             Some(set) => (set.ranges()[view.map].clone(), set.maps[view.map].normal),
             None => (0..c, false),
         };

@@ -226,13 +226,20 @@
     $("slice-row").hidden = m.dims !== 3;
     $("map-row").hidden = m.maps.length === 0;
     const select = $("map");
-    if (select.options.length !== m.maps.length) {
+    // A map set's maps, then the material lit from them (index: the number of maps).
+    const views = m.maps.length === 0 ? 0 : m.maps.length + 1;
+    if (select.options.length !== views) {
       select.textContent = "";
       m.maps.forEach((map, i) => {
         const o = document.createElement("option");
         o.value = String(i); o.textContent = map.name + (map.normal ? " (normal, as colours)" : "");
         select.appendChild(o);
       });
+      if (views > 0) {
+        const o = document.createElement("option");
+        o.value = String(m.maps.length); o.textContent = "material, lit";
+        select.appendChild(o);
+      }
       select.value = String(state.map);
     }
   }
@@ -244,10 +251,11 @@
     ["generator loss", ["generator_loss"]],
     ["K per axis", ["k_depth", "k_rows", "k_cols"]],
     ["SIFID (lower is better)", ["sifid"]],
-    ["structure (lower is better)", ["structure"]],
+    ["structure (lower is better)", ["structure"], "structure_"],
     ["repeat (near 1: a grid)", ["repeat"]],
   ];
-  const COLOURS = ["#0b6eaf", "#c0392b", "#27ae60"];
+  const COLOURS = ["#0b6eaf", "#c0392b", "#27ae60", "#8e44ad", "#d68910", "#555555"];
+  const COLOUR_NAMES = ["blue", "red", "green", "purple", "orange", "gray"];
 
   function plot(title, names, metrics) {
     const xs = metrics.iteration || [];
@@ -277,15 +285,15 @@
     add("text", { x: W - 6, y: H - 3, "font-size": 10, "text-anchor": "end" }, String(x1));
     points.forEach((pts, i) => {
       const d = pts.map(([x, y]) => `${sx(x).toFixed(1)},${sy(y).toFixed(1)}`).join(" ");
-      const line = add("polyline", { points: d, fill: "none", stroke: COLOURS[i % 3], "stroke-width": 1.2 });
+      const line = add("polyline", { points: d, fill: "none", stroke: COLOURS[i % COLOURS.length], "stroke-width": 1.2 });
       line.dataset.series = lines[i].n;
-      if (pts.length < 40) pts.forEach(([x, y]) => add("circle", { cx: sx(x), cy: sy(y), r: 2, fill: COLOURS[i % 3] }));
+      if (pts.length < 40) pts.forEach(([x, y]) => add("circle", { cx: sx(x), cy: sy(y), r: 2, fill: COLOURS[i % COLOURS.length] }));
     });
     const figure = document.createElement("figure");
     const caption = document.createElement("figcaption");
     const latest = (i) => fmt(points[i][points[i].length - 1]?.[1] ?? NaN);
     const last = lines.length === 1 ? latest(0)
-      : lines.map(({ n }, i) => `${n.replace("k_", "")} ${latest(i)} (${["blue", "red", "green"][i % 3]})`).join(", ");
+      : lines.map(({ n }, i) => `${n.replace("k_", "").replace("structure_", "")} ${latest(i)} (${COLOUR_NAMES[i % COLOURS.length]})`).join(", ");
     caption.textContent = `${title}: ${last}`;
     figure.append(caption, svg);
     return figure;
@@ -299,8 +307,10 @@
     $("run-iteration").textContent = String(run.iteration);
     const plots = $("plots");
     plots.textContent = "";
-    for (const [title, names] of SERIES) {
-      const figure = plot(title, names, run.metrics);
+    for (const [title, names, perMap] of SERIES) {
+      // A map set's run has one structure column per map: those lines replace their mean.
+      const maps = perMap ? Object.keys(run.metrics).filter((n) => n.startsWith(perMap)) : [];
+      const figure = plot(title, maps.length ? maps : names, run.metrics);
       if (figure) plots.appendChild(figure);
     }
     const strip = $("previews");

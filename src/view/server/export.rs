@@ -80,7 +80,7 @@ fn write_export(shared: &Shared, query: &str) -> Result<serde_json::Value> {
         .config
         .export_dir
         .join(export_name(&view, at, [rows, cols]));
-    let files: Vec<PathBuf> = match &model.maps {
+    let mut files: Vec<PathBuf> = match &model.maps {
         Some(set) => set
             .outputs(&out, Some(8))?
             .into_iter()
@@ -88,6 +88,10 @@ fn write_export(shared: &Shared, query: &str) -> Result<serde_json::Value> {
             .collect(),
         None => vec![out.clone()],
     };
+    if view.lit(&model) {
+        // After the maps, so the view's index names it.
+        files.push(crate::view::lit_path(&out));
+    }
     let name = |p: &PathBuf| {
         p.file_name()
             .and_then(|n| n.to_str())
