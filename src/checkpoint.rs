@@ -8,7 +8,6 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
 use crate::error::Result;
-use crate::input_error;
 use crate::io::write_atomic;
 
 /// Metadata key whose value identifies an ipfn checkpoint.
@@ -54,19 +53,19 @@ impl Checkpoint {
     /// were stored without the depth axis they now have); an error names the file otherwise.
     pub fn tensor(&self, name: &str, shape: &[usize]) -> Result<&[f32]> {
         let t = self.tensors.get(name).ok_or_else(|| {
-            input_error!(
-                "{}: tensor {name} is missing: the file is not a model of this kind",
-                self.source.display()
+            crate::file_error!(
+                &self.source,
+                "tensor {name} is missing: the file is not a model of this kind",
             )
         })?;
         let squeezed = |s: &[usize]| s.iter().copied().filter(|&n| n != 1).collect::<Vec<_>>();
         let lacks_unit_axes = t.shape.len() < shape.len() && squeezed(&t.shape) == squeezed(shape);
         if t.shape != shape && !lacks_unit_axes {
-            return Err(input_error!(
-                "{}: tensor {name} has shape {:?}, expected {:?}: the checkpoint is for another model shape",
-                self.source.display(),
+            return Err(crate::file_error!(
+                &self.source,
+                "tensor {name} has shape {:?}, expected {:?}: the checkpoint is for another model shape",
                 t.shape,
-                shape
+                shape,
             ));
         }
         Ok(&t.values)
@@ -75,9 +74,9 @@ impl Checkpoint {
     /// A metadata value that must be present.
     pub fn meta(&self, key: &str) -> Result<&str> {
         self.metadata.get(key).map(String::as_str).ok_or_else(|| {
-            input_error!(
-                "{}: checkpoint has no '{key}' entry: the file is damaged or not an ipfn model",
-                self.source.display()
+            crate::file_error!(
+                &self.source,
+                "checkpoint has no '{key}' entry: the file is damaged or not an ipfn model",
             )
         })
     }
@@ -122,8 +121,8 @@ impl Checkpoint {
     /// Reads and validates a checkpoint file.
     pub fn load(path: &Path) -> Result<Self> {
         let bytes = std::fs::read(path).map_err(|e| match e.kind() {
-            std::io::ErrorKind::NotFound => input_error!("{}: no such model file", path.display()),
-            _ => input_error!("{}: cannot read model: {e}", path.display()),
+            std::io::ErrorKind::NotFound => crate::file_error!(&path, "no such model file"),
+            _ => crate::file_error!(&path, "cannot read model: {e}"),
         })?;
         Self::from_bytes(&bytes, path)
     }
@@ -131,18 +130,15 @@ impl Checkpoint {
     /// Parses checkpoint bytes; `path` names the source in errors.
     pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self> {
         let not_ours = || {
-            input_error!(
-                "{}: not an ipfn model (to convert an authors' PyTorch generator, run `ipfn import {} -o model.ipfn`)",
+            crate::file_error!(
+                &path,
+                "not an ipfn model (to convert an authors' PyTorch generator, run `ipfn import {} -o model.ipfn`)",
                 path.display(),
-                path.display()
             )
         };
         let (_, header) = safetensors::SafeTensors::read_metadata(bytes).map_err(|_| {
             if path.extension().is_some_and(|e| e == "ipfn") {
-                input_error!(
-                    "{}: corrupt model file (truncated or damaged)",
-                    path.display()
-                )
+                crate::file_error!(&path, "corrupt model file (truncated or damaged)",)
             } else {
                 not_ours()
             }
@@ -160,26 +156,23 @@ impl Checkpoint {
             .get(VERSION_KEY)
             .and_then(|v| v.parse().ok())
             .ok_or_else(|| {
-                input_error!(
-                    "{}: checkpoint has no readable format version",
-                    path.display()
-                )
+                crate::file_error!(&path, "checkpoint has no readable format version",)
             })?;
         if version != FORMAT_VERSION {
-            return Err(input_error!(
-                "{}: checkpoint format version {version}, this ipfn reads version {FORMAT_VERSION}",
-                path.display()
+            return Err(crate::file_error!(
+                &path,
+                "checkpoint format version {version}, this ipfn reads version {FORMAT_VERSION}",
             ));
         }
         let st = safetensors::SafeTensors::deserialize(bytes)
-            .map_err(|e| input_error!("{}: corrupt model file: {e}", path.display()))?;
+            .map_err(|e| crate::file_error!(&path, "corrupt model file: {e}"))?;
         let mut tensors = BTreeMap::new();
         for (name, view) in st.tensors() {
             if view.dtype() != safetensors::Dtype::F32 {
-                return Err(input_error!(
-                    "{}: tensor {name} is {:?}, expected F32",
-                    path.display(),
-                    view.dtype()
+                return Err(crate::file_error!(
+                    &path,
+                    "tensor {name} is {:?}, expected F32",
+                    view.dtype(),
                 ));
             }
             let values = view

@@ -59,8 +59,10 @@ impl FromStr for Guide {
 }
 
 fn bad(s: &str) -> Error {
-    input_error!(
-        "--guide {s}: expected x, y, -x, -y, a line a,b,c (g = a·x + b·y + c), or a grayscale image"
+    crate::setting_error!(
+        "--guide",
+        s,
+        "expected x, y, -x, -y, a line a,b,c (g = a·x + b·y + c), or a grayscale image"
     )
 }
 

@@ -66,7 +66,7 @@ impl EvalRequest {
                 };
                 let config = crate::fit::FitConfig::default();
                 let report = TileReport::of(&painter, &exemplar, None, &config, None)
-                    .map_err(|e| in_file(e, &self.exemplar))
+                    .map_err(|e| e.in_file(&self.exemplar))
                     .map_err(|e| input_error!("{e} (the tile: {description})"))?;
                 Ok(Report::Tile(report))
             }
@@ -79,7 +79,7 @@ impl EvalRequest {
                 self.device,
             )
             .map(|r| Report::Generator(Box::new(r)))
-            .map_err(|e| in_file(e, &self.exemplar)),
+            .map_err(|e| e.in_file(&self.exemplar)),
         }
     }
 }
@@ -101,11 +101,11 @@ pub struct ImagesReport {
 pub fn compare_images(a: &Path, b: &Path) -> Result<ImagesReport> {
     let read = |p: &Path| -> Result<(Exemplar, metrics::Gaussian)> {
         let image = crate::exemplar::read_exemplar(p)?;
-        let rgb = metrics::to_unit_rgb(&image.values, image.channels).map_err(|e| in_file(e, p))?;
+        let rgb = metrics::to_unit_rgb(&image.values, image.channels).map_err(|e| e.in_file(p))?;
         let features = metrics::InceptionStem::embedded()
             .features(&rgb, image.height, image.width)
-            .map_err(|e| in_file(e, p))?;
-        let gaussian = metrics::Gaussian::fit(&features).map_err(|e| in_file(e, p))?;
+            .map_err(|e| e.in_file(p))?;
+        let gaussian = metrics::Gaussian::fit(&features).map_err(|e| e.in_file(p))?;
         Ok((image, gaussian))
     };
     let ((ia, ga), (ib, gb)) = (read(a)?, read(b)?);
@@ -121,12 +121,4 @@ pub fn compare_images(a: &Path, b: &Path) -> Result<ImagesReport> {
         a: a.to_path_buf(),
         b: b.to_path_buf(),
     })
-}
-
-/// An input error about the exemplar names its file.
-fn in_file(e: crate::Error, path: &Path) -> crate::Error {
-    match e {
-        crate::Error::Input(m) => input_error!("{}: {m}", path.display()),
-        other => other,
-    }
 }

@@ -5,7 +5,6 @@
 use std::path::Path;
 
 use crate::error::Result;
-use crate::input_error;
 use crate::io::{extension, read_npy};
 
 /// An exemplar image: values scaled to [-1, 1], row-major `[height, width, channels]`.
@@ -166,7 +165,7 @@ pub fn read_exemplar(path: &Path) -> Result<Exemplar> {
 /// keep that precision as f32), 32 for EXR (float).
 pub fn read_exemplar_with_bits(path: &Path) -> Result<(Exemplar, u8)> {
     if !path.exists() {
-        return Err(input_error!("{}: no such file", path.display()));
+        return Err(crate::file_error!(&path, "no such file"));
     }
     let ext = extension(path);
     if ext == "exr" {
@@ -174,9 +173,9 @@ pub fn read_exemplar_with_bits(path: &Path) -> Result<(Exemplar, u8)> {
     }
     let image = image::ImageReader::open(path)
         .and_then(|r| r.with_guessed_format())
-        .map_err(|e| input_error!("{}: cannot read: {e}", path.display()))?
+        .map_err(|e| crate::file_error!(&path, "cannot read: {e}"))?
         .decode()
-        .map_err(|e| input_error!("{}: not a readable PNG or JPEG image ({e})", path.display()))?;
+        .map_err(|e| crate::file_error!(&path, "not a readable PNG or JPEG image ({e})"))?;
     let (w, h) = (image.width() as usize, image.height() as usize);
     let bits = match image.color().bytes_per_pixel() / image.color().channel_count() {
         1 => 8,
@@ -190,14 +189,14 @@ pub fn read_exemplar_with_bits(path: &Path) -> Result<(Exemplar, u8)> {
         Rgb8 | Rgb16 | Rgb32F => (3, image.to_rgb32f().into_raw()),
         Rgba8 | Rgba16 | Rgba32F => (4, image.to_rgba32f().into_raw()),
         other => {
-            return Err(input_error!(
-                "{}: unsupported pixel format {other:?}; use gray, RGB or RGBA",
-                path.display()
+            return Err(crate::file_error!(
+                &path,
+                "unsupported pixel format {other:?}; use gray, RGB or RGBA",
             ));
         }
     };
     if w == 0 || h == 0 {
-        return Err(input_error!("{}: the image is empty", path.display()));
+        return Err(crate::file_error!(&path, "the image is empty"));
     }
     Ok((Exemplar::from_unit(w, h, channels, &unit), bits))
 }
@@ -211,7 +210,7 @@ pub const MAX_EXR_BYTES: usize = 512 << 20;
 fn read_exr_exemplar(path: &Path) -> Result<Exemplar> {
     use exr::prelude::*;
     let meta = exr::meta::MetaData::read_from_file(path, false)
-        .map_err(|e| input_error!("{}: not a readable EXR image ({e})", path.display()))?;
+        .map_err(|e| crate::file_error!(&path, "not a readable EXR image ({e})"))?;
     for header in meta.headers.iter() {
         let size = header.layer_size;
         let bytes = size
@@ -220,13 +219,13 @@ fn read_exr_exemplar(path: &Path) -> Result<Exemplar> {
             .and_then(|p| p.checked_mul(header.channels.list.len().max(1)))
             .and_then(|v| v.checked_mul(4));
         if bytes.is_none_or(|b| b > MAX_EXR_BYTES) {
-            return Err(input_error!(
-                "{}: its header claims a {}x{} layer of {} channels, over the {} MiB an exemplar may take",
-                path.display(),
+            return Err(crate::file_error!(
+                &path,
+                "its header claims a {}x{} layer of {} channels, over the {} MiB an exemplar may take",
                 size.0,
                 size.1,
                 header.channels.list.len(),
-                MAX_EXR_BYTES >> 20
+                MAX_EXR_BYTES >> 20,
             ));
         }
     }
@@ -237,7 +236,7 @@ fn read_exr_exemplar(path: &Path) -> Result<Exemplar> {
         .first_valid_layer()
         .all_attributes()
         .from_file(path)
-        .map_err(|e| input_error!("{}: not a readable EXR image ({e})", path.display()))?;
+        .map_err(|e| crate::file_error!(&path, "not a readable EXR image ({e})"))?;
     let layer = image.layer_data;
     let (w, h) = (layer.size.0, layer.size.1);
     let find = |name: &str| {
@@ -252,9 +251,9 @@ fn read_exr_exemplar(path: &Path) -> Result<Exemplar> {
     } else if find("Y").is_some() {
         vec!["Y", "A"]
     } else {
-        return Err(input_error!(
-            "{}: EXR needs channels R, G, B (and A) or Y",
-            path.display()
+        return Err(crate::file_error!(
+            &path,
+            "EXR needs channels R, G, B (and A) or Y",
         ));
     };
     let chans: Vec<_> = order.iter().filter_map(|n| find(n)).collect();
@@ -282,25 +281,25 @@ pub struct Volume {
 /// prepare one: scaled by `sdf_scale` and clamped to [-1, 1] (a truncated SDF).
 pub fn read_sdf_volume(path: &Path, sdf_scale: f32) -> Result<Volume> {
     if !path.exists() {
-        return Err(input_error!("{}: no such file", path.display()));
+        return Err(crate::file_error!(&path, "no such file"));
     }
     let (shape, values) = read_npy(path)?;
     let [depth, height, width] = match shape[..] {
         [d, h, w] | [d, h, w, 1] => [d, h, w],
         _ => {
-            return Err(input_error!(
-                "{}: a volume must be a 3D float array (D x H x W), this one has shape {shape:?}",
-                path.display()
+            return Err(crate::file_error!(
+                &path,
+                "a volume must be a 3D float array (D x H x W), this one has shape {shape:?}",
             ));
         }
     };
     if depth == 0 || height == 0 || width == 0 {
-        return Err(input_error!("{}: the volume is empty", path.display()));
+        return Err(crate::file_error!(&path, "the volume is empty"));
     }
     if values.iter().any(|v| !v.is_finite()) {
-        return Err(input_error!(
-            "{}: the volume holds NaN or infinite values",
-            path.display()
+        return Err(crate::file_error!(
+            &path,
+            "the volume holds NaN or infinite values",
         ));
     }
     Ok(Volume {

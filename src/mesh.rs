@@ -144,9 +144,9 @@ impl MeshFormat {
         match ext.as_str() {
             "obj" => Ok(Self::Obj),
             "ply" => Ok(Self::Ply),
-            _ => Err(input_error!(
-                "{}: meshes are written as .obj or .ply",
-                path.display()
+            _ => Err(crate::file_error!(
+                &path,
+                "meshes are written as .obj or .ply",
             )),
         }
     }
@@ -192,11 +192,11 @@ pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<()> {
 /// file's own units.
 pub fn read_mesh(path: &Path) -> Result<Mesh> {
     if !path.exists() {
-        return Err(input_error!("{}: no such file", path.display()));
+        return Err(crate::file_error!(&path, "no such file"));
     }
     let bad = |why: String| {
         let why = why.split_whitespace().collect::<Vec<_>>().join(" ");
-        input_error!("{}: not a readable mesh ({why})", path.display())
+        crate::file_error!(&path, "not a readable mesh ({why})")
     };
     let mut mesh = Mesh::default();
     match MeshFormat::from_path(path)? {
@@ -313,8 +313,10 @@ pub fn voxelize(mesh: &Mesh, res: usize, padding: f32) -> Result<Voxelized> {
         ));
     }
     if res > MAX_VOXELIZE_RES {
-        return Err(input_error!(
-            "--res {res}: at most {MAX_VOXELIZE_RES} (the whole {res}³ volume is held in memory)"
+        return Err(crate::setting_error!(
+            "--res",
+            res,
+            "at most {MAX_VOXELIZE_RES} (the whole {res}³ volume is held in memory)"
         ));
     }
     let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);

@@ -69,9 +69,9 @@ pub fn choose_checkpoint(
 ) -> Result<(Checkpoint, String, Option<PathBuf>)> {
     let in_folder = explicit.filter(|p| p.is_dir()).map(|dir| {
         run_model(dir).ok_or_else(|| {
-            input_error!(
-                "{}: no tile.ipfn, best.ipfn or latest.ipfn in this folder; give a model file",
-                dir.display()
+            crate::file_error!(
+                &dir,
+                "no tile.ipfn, best.ipfn or latest.ipfn in this folder; give a model file",
             )
         })
     });

@@ -31,9 +31,9 @@ fn _ipfn(m: &Bound<'_, PyModule>) -> PyResult<()> {
 /// The Python exception for a library error: `InputError` for bad input, else `IpfnError`
 /// (both defined in `ipfn._errors`, so that `InputError` is also a `ValueError`).
 pub(crate) fn to_py(e: ipfn::Error) -> PyErr {
-    let name = match e {
-        ipfn::Error::Input(_) => "InputError",
-        _ => "IpfnError",
+    let name = match e.is_input() {
+        true => "InputError",
+        false => "IpfnError",
     };
     raise(name, e.to_string())
 }

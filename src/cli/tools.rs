@@ -66,10 +66,7 @@ pub struct DrawArgs {
 
 pub(super) fn import(args: ImportArgs) -> Result<()> {
     if args.out.extension().is_none_or(|e| e != "ipfn") {
-        return Err(input_error!(
-            "{}: model files end in .ipfn",
-            args.out.display()
-        ));
+        return Err(crate::file_error!(&args.out, "model files end in .ipfn",));
     }
     let (config, weights) = crate::generator::import_pytorch(&args.pth, args.octaves, args.crop)?;
     let mut ckpt = Checkpoint::new();
@@ -107,7 +104,11 @@ pub(super) fn draw(args: DrawArgs) -> Result<()> {
     if args.pattern == "gyroid" {
         let period = args.period.unwrap_or(32);
         if period < 2 {
-            return Err(input_error!("--period {period}: must be at least 2 voxels"));
+            return Err(crate::setting_error!(
+                "--period",
+                period,
+                "must be at least 2 voxels"
+            ));
         }
         let sdf = if args.graded {
             procedural::graded_gyroid_sdf(n, period as f32, 0.1, 0.9)
@@ -125,7 +126,7 @@ pub(super) fn draw(args: DrawArgs) -> Result<()> {
     }
     if args.pattern == "material" {
         std::fs::create_dir_all(&args.out)
-            .map_err(|e| input_error!("{}: cannot create folder: {e}", args.out.display()))?;
+            .map_err(|e| crate::file_error!(&args.out, "cannot create folder: {e}"))?;
         let maps = procedural::material(n, n, 32);
         for ((name, channels), unit) in procedural::MATERIAL_MAPS.iter().zip(maps) {
             let path = args.out.join(format!("{name}.png"));
@@ -165,9 +166,10 @@ pub(super) fn draw(args: DrawArgs) -> Result<()> {
 
 pub(super) fn voxelize(args: VoxelizeArgs) -> Result<()> {
     if !(args.padding.is_finite() && args.padding >= 0.0) {
-        return Err(input_error!(
-            "--padding {}: must be a fraction of 0 or more",
-            args.padding
+        return Err(crate::setting_error!(
+            "--padding",
+            args.padding,
+            "must be a fraction of 0 or more"
         ));
     }
     crate::io::VolumeFormat::from_path(&args.out)?;
@@ -175,7 +177,7 @@ pub(super) fn voxelize(args: VoxelizeArgs) -> Result<()> {
     let start = Instant::now();
     let mesh = crate::mesh::read_mesh(&args.mesh)?;
     let volume = crate::mesh::voxelize(&mesh, args.res, args.padding)
-        .map_err(|e| input_error!("{}: {e}", args.mesh.display()))?;
+        .map_err(|e| crate::file_error!(&args.mesh, "{e}"))?;
     if volume.open_edges > 0 {
         eprintln!(
             "warning: {} has {} open edges: inside and outside are decided by ray parity voted over three axes, which can leak through holes; close the mesh for a reliable sign",

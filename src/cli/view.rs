@@ -42,18 +42,15 @@ fn resolve(path: Option<&Path>) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
     match path {
         Some(dir) if dir.is_dir() => {
             if !is_run(dir) {
-                return Err(input_error!(
-                    "{}: not a training run folder (no metrics.csv or latest.ipfn); give a run folder or a model file",
-                    dir.display()
+                return Err(crate::file_error!(
+                    &dir,
+                    "not a training run folder (no metrics.csv or latest.ipfn); give a run folder or a model file",
                 ));
             }
             Ok((Some(dir.join("latest.ipfn")), Some(dir.to_path_buf())))
         }
         Some(file) if file.is_file() => Ok((Some(file.to_path_buf()), None)),
-        Some(missing) => Err(input_error!(
-            "{}: no such file or folder",
-            missing.display()
-        )),
+        Some(missing) => Err(crate::file_error!(&missing, "no such file or folder",)),
         None => Ok(match crate::model::most_recent_model(Path::new(".")) {
             Some(model) => {
                 let dir = model
@@ -73,15 +70,17 @@ pub(super) fn view(args: ViewArgs) -> Result<()> {
     let device = DeviceChoice::resolve(&args.device)?;
     device.burn_device()?;
     if !args.export_dir.is_dir() {
-        return Err(input_error!(
-            "--export-dir {}: no such folder",
-            args.export_dir.display()
+        return Err(crate::setting_error!(
+            "--export-dir",
+            args.export_dir.display(),
+            "no such folder"
         ));
     }
     if args.cache_mb == 0 || args.cache_mb > 1 << 20 {
-        return Err(input_error!(
-            "--cache-mb {}: give 1 to 1048576",
-            args.cache_mb
+        return Err(crate::setting_error!(
+            "--cache-mb",
+            args.cache_mb,
+            "give 1 to 1048576"
         ));
     }
     let (model, run) = resolve(args.path.as_deref())?;

@@ -70,9 +70,10 @@ impl CriticConfig {
             || self.widths.len() > 8
             || self.widths.iter().any(|&w| w == 0 || w > 4096)
         {
-            return Err(input_error!(
-                "critic_widths = {:?}: 1 to 8 layers of 1 to 4096 channels",
-                self.widths
+            return Err(crate::setting_error!(
+                "critic_widths",
+                format!("{:?}", self.widths),
+                "1 to 8 layers of 1 to 4096 channels"
             ));
         }
         // Weights: 4^axes taps per input and output channel pair.
@@ -84,9 +85,10 @@ impl CriticConfig {
             .map(|w| w[0] * w[1] * taps)
             .sum();
         if parameters > MAX_CRITIC_PARAMETERS {
-            return Err(input_error!(
-                "critic_widths = {:?}: {parameters} critic parameters, at most {MAX_CRITIC_PARAMETERS}",
-                self.widths
+            return Err(crate::setting_error!(
+                "critic_widths",
+                format!("{:?}", self.widths),
+                "{parameters} critic parameters, at most {MAX_CRITIC_PARAMETERS}"
             ));
         }
         let factor = 1usize << self.widths.len();

@@ -155,9 +155,10 @@ impl FitConfig {
             ));
         }
         if self.band(period) > nyquist {
-            return Err(input_error!(
-                "--band-limit {}: above what a {}x{} tile's pixels can hold (Nyquist: at most {nyquist} cycles per period)",
+            return Err(crate::setting_error!(
+                "--band-limit",
                 self.band_limit,
+                "above what a {}x{} tile's pixels can hold (Nyquist: at most {nyquist} cycles per period)",
                 period[1],
                 period[0]
             ));

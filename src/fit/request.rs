@@ -184,8 +184,10 @@ impl FitRequest {
 
     fn check_bits(&self) -> Result<()> {
         match self.bits.filter(|b| *b != 8 && *b != 16) {
-            Some(bits) => Err(input_error!(
-                "--bits {bits}: PNG output is 8 or 16 bits per channel"
+            Some(bits) => Err(crate::setting_error!(
+                "--bits",
+                bits,
+                "PNG output is 8 or 16 bits per channel"
             )),
             None => Ok(()),
         }

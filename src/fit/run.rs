@@ -121,13 +121,13 @@ fn load_inputs(config: &FitConfig) -> Result<(Exemplar, Option<MapSet>, Option<V
         Some(path) => {
             let m = crate::exemplar::read_exemplar(path)?;
             if (m.width, m.height) != (photo.width, photo.height) {
-                return Err(input_error!(
-                    "{}: the mask is {}x{} but the photo is {}x{}; give a mask of the photo's size",
-                    path.display(),
+                return Err(crate::file_error!(
+                    &path,
+                    "the mask is {}x{} but the photo is {}x{}; give a mask of the photo's size",
                     m.width,
                     m.height,
                     photo.width,
-                    photo.height
+                    photo.height,
                 ));
             }
             let c = m.channels;
@@ -167,7 +167,7 @@ impl Fitter {
             ));
         }
         std::fs::create_dir_all(run_dir)
-            .map_err(|e| input_error!("{}: cannot create: {e}", run_dir.display()))?;
+            .map_err(|e| crate::file_error!(&run_dir, "cannot create: {e}"))?;
         let lock = RunLock::acquire(run_dir)?;
         let shape = config.shape(
             config.period_for([photo.height, photo.width]),
@@ -195,9 +195,9 @@ impl Fitter {
     pub fn resume(run_dir: &Path, device: Option<burn::tensor::Device>) -> Result<Self> {
         let path = run_dir.join("latest.ipfn");
         if !path.is_file() {
-            return Err(input_error!(
-                "{}: no latest.ipfn to resume from; is this a fit's run folder?",
-                run_dir.display()
+            return Err(crate::file_error!(
+                &run_dir,
+                "no latest.ipfn to resume from; is this a fit's run folder?",
             ));
         }
         let lock = RunLock::acquire(run_dir)?;

@@ -8,7 +8,6 @@ use std::io::{Read, Seek, Write};
 use std::path::Path;
 
 use crate::error::{Error, Result};
-use crate::input_error;
 
 /// The lock of a run folder, released when dropped (or when the process ends).
 #[derive(Debug)]
@@ -26,7 +25,7 @@ impl RunLock {
             .create(true)
             .truncate(false)
             .open(&path)
-            .map_err(|e| input_error!("{}: cannot open: {e}", path.display()))?;
+            .map_err(|e| crate::file_error!(&path, "cannot open: {e}"))?;
         // `ipfn view` probes the lock for a moment with a shared lock: retry briefly.
         let mut attempt = file.try_lock();
         for _ in 0..20 {
@@ -47,9 +46,9 @@ impl RunLock {
                 } else {
                     format!("another process ({holder})")
                 };
-                return Err(input_error!(
-                    "{}: this run is in use by {who}; wait for it to end, or stop it (SIGTERM or Ctrl-C saves a checkpoint), then resume",
-                    run_dir.display()
+                return Err(crate::file_error!(
+                    &run_dir,
+                    "this run is in use by {who}; wait for it to end, or stop it (SIGTERM or Ctrl-C saves a checkpoint), then resume",
                 ));
             }
             // A file system without locks (some network mounts): train unguarded.

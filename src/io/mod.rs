@@ -11,7 +11,6 @@ use std::path::{Path, PathBuf};
 use npyz::WriterBuilder;
 
 use crate::error::{Error, Result};
-use crate::input_error;
 
 pub mod lock;
 pub mod shard;
@@ -39,14 +38,12 @@ fn npy_header_end(bytes: &[u8]) -> Option<usize> {
 
 /// Reads a float32 (or float64, converted) `.npy` array: `(shape, values)` in C order.
 pub fn read_npy(path: &Path) -> Result<(Vec<usize>, Vec<f32>)> {
-    let bytes =
-        std::fs::read(path).map_err(|e| input_error!("{}: cannot read: {e}", path.display()))?;
-    let corrupt =
-        |e: std::io::Error| input_error!("{}: not a valid .npy array: {e}", path.display());
+    let bytes = std::fs::read(path).map_err(|e| crate::file_error!(&path, "cannot read: {e}"))?;
+    let corrupt = |e: std::io::Error| crate::file_error!(&path, "not a valid .npy array: {e}");
     let header_end = npy_header_end(&bytes).ok_or_else(|| {
-        input_error!(
-            "{}: not a valid .npy array: its header is missing, truncated or claims more bytes than the file has",
-            path.display()
+        crate::file_error!(
+            &path,
+            "not a valid .npy array: its header is missing, truncated or claims more bytes than the file has",
         )
     })?;
     let npy = npyz::NpyFile::new(&bytes[..]).map_err(corrupt)?;
@@ -57,16 +54,16 @@ pub fn read_npy(path: &Path) -> Result<(Vec<usize>, Vec<f32>)> {
         .try_fold(1u64, |n, &d| n.checked_mul(d))
         .and_then(|n| n.checked_mul(npy.dtype().num_bytes().unwrap_or(8) as u64));
     if claimed.is_none_or(|n| n > (bytes.len() - header_end) as u64) {
-        return Err(input_error!(
-            "{}: not a valid .npy array: its shape {:?} claims more data than the file holds",
-            path.display(),
-            npy.shape()
+        return Err(crate::file_error!(
+            &path,
+            "not a valid .npy array: its shape {:?} claims more data than the file holds",
+            npy.shape(),
         ));
     }
     if npy.order() != npyz::Order::C {
-        return Err(input_error!(
-            "{}: Fortran-ordered .npy arrays are not supported; save it in C order",
-            path.display()
+        return Err(crate::file_error!(
+            &path,
+            "Fortran-ordered .npy arrays are not supported; save it in C order",
         ));
     }
     let shape: Vec<usize> = npy.shape().iter().map(|&d| d as usize).collect();
@@ -82,10 +79,10 @@ pub fn read_npy(path: &Path) -> Result<(Vec<usize>, Vec<f32>)> {
                 .collect()
         }
         other => {
-            return Err(input_error!(
-                "{}: expected a float32 or float64 array, found {}",
-                path.display(),
-                other.descr()
+            return Err(crate::file_error!(
+                &path,
+                "expected a float32 or float64 array, found {}",
+                other.descr(),
             ));
         }
     };
@@ -122,17 +119,14 @@ pub fn check_destination(path: &Path) -> Result<&Path> {
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        return Err(input_error!(
-            "{}: cannot write: folder {} does not exist",
-            path.display(),
-            dir.display()
+        return Err(crate::file_error!(
+            &path,
+            "cannot write: folder {} does not exist",
+            dir.display(),
         ));
     }
     if path.is_dir() {
-        return Err(input_error!(
-            "{}: cannot write: it is a folder",
-            path.display()
-        ));
+        return Err(crate::file_error!(&path, "cannot write: it is a folder",));
     }
     Ok(dir)
 }
@@ -151,7 +145,7 @@ impl AtomicFile {
             .map_err(|e| match e.kind() {
                 // The user's to fix: a folder they cannot write to.
                 std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::NotFound => {
-                    input_error!("{}: cannot write: {e}", path.display())
+                    crate::file_error!(&path, "cannot write: {e}")
                 }
                 // The machine's: a full disk, a read-only or lost mount.
                 _ => Error::Runtime(format!("{}: cannot write: {e}", path.display())),
@@ -238,28 +232,27 @@ impl OutputFormat {
             "exr" => OutputFormat::Exr,
             "npy" => OutputFormat::Npy,
             "" => {
-                return Err(input_error!(
-                    "{}: no file extension; use .png, .exr or .npy",
-                    path.display()
+                return Err(crate::file_error!(
+                    &path,
+                    "no file extension; use .png, .exr or .npy",
                 ));
             }
             other => {
-                return Err(input_error!(
-                    "{}: unknown extension .{other}; use .png, .exr or .npy",
-                    path.display()
+                return Err(crate::file_error!(
+                    &path,
+                    "unknown extension .{other}; use .png, .exr or .npy",
                 ));
             }
         };
         if !matches!(bits, 8 | 16) {
-            return Err(input_error!(
-                "--bits {bits}: PNG holds 8 or 16 bits per channel"
+            return Err(crate::setting_error!(
+                "--bits",
+                bits,
+                "PNG holds 8 or 16 bits per channel"
             ));
         }
         if bits == 16 && format != (OutputFormat::Png { bits: 16 }) {
-            return Err(input_error!(
-                "{}: --bits 16 applies to .png only",
-                path.display()
-            ));
+            return Err(crate::file_error!(&path, "--bits 16 applies to .png only",));
         }
         Ok(format)
     }
@@ -278,39 +271,39 @@ impl OutputFormat {
             OutputFormat::Npy => usize::MAX,
         };
         if width == 0 || height == 0 {
-            return Err(input_error!(
-                "{}: size {width}x{height}: width and height must be at least 1",
-                path.display()
+            return Err(crate::file_error!(
+                &path,
+                "size {width}x{height}: width and height must be at least 1",
             ));
         }
         if width > limit || height > limit {
-            return Err(input_error!(
-                "{}: size {width}x{height} is too large for this format (at most {limit} per side)",
-                path.display()
+            return Err(crate::file_error!(
+                &path,
+                "size {width}x{height} is too large for this format (at most {limit} per side)",
             ));
         }
         if let OutputFormat::Png { bits } = self {
             if !(1..=4).contains(&channels) {
-                return Err(input_error!(
-                    "{}: PNG holds 1 to 4 channels, this model makes {channels}; write .exr or .npy",
-                    path.display()
+                return Err(crate::file_error!(
+                    &path,
+                    "PNG holds 1 to 4 channels, this model makes {channels}; write .exr or .npy",
                 ));
             }
             // The png crate buffers one row; keep a row's bytes addressable.
             let row = width.checked_mul(channels * (*bits as usize / 8));
             if row.is_none_or(|r| r > u32::MAX as usize) {
-                return Err(input_error!(
-                    "{}: width {width} is too large for PNG rows",
-                    path.display()
+                return Err(crate::file_error!(
+                    &path,
+                    "width {width} is too large for PNG rows",
                 ));
             }
         }
         if *self == OutputFormat::Exr
             && width.saturating_mul(height).saturating_mul(channels) > (1usize << 32)
         {
-            return Err(input_error!(
-                "{}: {width}x{height} is too large for .exr output, which is held in memory; write .png or .npy (streamed)",
-                path.display()
+            return Err(crate::file_error!(
+                &path,
+                "{width}x{height} is too large for .exr output, which is held in memory; write .png or .npy (streamed)",
             ));
         }
         Ok(())

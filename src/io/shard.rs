@@ -59,7 +59,11 @@ impl Shard {
         let index = match var {
             Some(name) => {
                 let value = env(name).ok_or_else(|| {
-                    input_error!("--shard-from-env {name}: the variable {name} is not set")
+                    crate::setting_error!(
+                        "--shard-from-env",
+                        name,
+                        "the variable {name} is not set"
+                    )
                 })?;
                 number(name, value)?
             }

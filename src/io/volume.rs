@@ -9,7 +9,6 @@ use npyz::WriterBuilder;
 
 use super::{AtomicFile, extension};
 use crate::error::{Error, Result};
-use crate::input_error;
 
 /// How a volume file stores its values, chosen by its extension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -27,9 +26,9 @@ impl VolumeFormat {
         match ext.as_str() {
             "npy" => Ok(Self::Npy),
             "raw" => Ok(Self::Raw),
-            _ => Err(input_error!(
-                "{}: volumes are written as .npy (float32 [D, H, W, C] with its shape) or .raw (bare little-endian float32, same order)",
-                path.display()
+            _ => Err(crate::file_error!(
+                &path,
+                "volumes are written as .npy (float32 [D, H, W, C] with its shape) or .raw (bare little-endian float32, same order)",
             )),
         }
     }
@@ -50,9 +49,9 @@ pub fn check_volume_size(
     channels: usize,
 ) -> Result<()> {
     if depth == 0 || height == 0 || width == 0 {
-        return Err(input_error!(
-            "{}: size {width}x{height}x{depth}: every side must be at least 1",
-            path.display()
+        return Err(crate::file_error!(
+            &path,
+            "size {width}x{height}x{depth}: every side must be at least 1",
         ));
     }
     let slice = height.checked_mul(width);
@@ -62,9 +61,9 @@ pub fn check_volume_size(
         .and_then(|t| t.checked_mul(4));
     match (slice, total) {
         (Some(slice), Some(_)) if slice <= MAX_SLICE_VOXELS => Ok(()),
-        _ => Err(input_error!(
-            "{}: size {width}x{height}x{depth}: one depth slice of {width}x{height} voxels is too large to paint in memory (at most {MAX_SLICE_VOXELS} voxels, e.g. 16384x16384); paint a smaller volume",
-            path.display()
+        _ => Err(crate::file_error!(
+            &path,
+            "size {width}x{height}x{depth}: one depth slice of {width}x{height} voxels is too large to paint in memory (at most {MAX_SLICE_VOXELS} voxels, e.g. 16384x16384); paint a smaller volume",
         )),
     }
 }

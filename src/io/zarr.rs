@@ -46,8 +46,10 @@ impl ZarrType {
             None | Some(32) => Ok(Self::Float32),
             Some(8) => Ok(Self::Uint8),
             Some(16) => Ok(Self::Uint16),
-            Some(b) => Err(input_error!(
-                "--bits {b}: Zarr output is float32 (no --bits, or 32), or 8 or 16 bits per channel"
+            Some(b) => Err(crate::setting_error!(
+                "--bits",
+                b,
+                "Zarr output is float32 (no --bits, or 32), or 8 or 16 bits per channel"
             )),
         }
     }
@@ -280,9 +282,9 @@ impl ZarrWriter {
         match std::fs::read(&file) {
             Ok(bytes) => {
                 let theirs: serde_json::Value = serde_json::from_slice(&bytes).map_err(|e| {
-                    input_error!(
-                        "{}: not valid Zarr metadata ({e}); remove {shown} or choose another --out",
-                        file.display()
+                    crate::file_error!(
+                        &file,
+                        "not valid Zarr metadata ({e}); remove {shown} or choose another --out",
                     )
                 })?;
                 if theirs != ours {
@@ -319,7 +321,7 @@ impl ZarrWriter {
                     self.create_or_check_metadata()
                 }
             }
-            Err(e) => Err(input_error!("{}: cannot read: {e}", file.display())),
+            Err(e) => Err(crate::file_error!(&file, "cannot read: {e}")),
         }
     }
 

@@ -117,22 +117,22 @@ impl MapFiles {
                 let (w, h) = (first.width, first.height);
                 if (image.width, image.height) != (w, h) {
                     if !self.resample {
-                        return Err(input_error!(
-                            "{}: {}x{}, but {} is {w}x{h}; maps must be the same size (or pass --resize-maps to resample them)",
-                            file.display(),
+                        return Err(crate::file_error!(
+                            &file,
+                            "{}x{}, but {} is {w}x{h}; maps must be the same size (or pass --resize-maps to resample them)",
                             image.width,
                             image.height,
-                            self.files[0].display()
+                            self.files[0].display(),
                         ));
                     }
                     image = image.resized(w, h);
                 }
             }
             if normal && image.channels < 3 {
-                return Err(input_error!(
-                    "{}: a normal map needs 3 channels, this one has {}",
-                    file.display(),
-                    image.channels
+                return Err(crate::file_error!(
+                    &file,
+                    "a normal map needs 3 channels, this one has {}",
+                    image.channels,
                 ));
             }
             maps.push(MapInfo {
@@ -205,7 +205,7 @@ fn as_read(image: Exemplar, bits: u8, normal: bool, directx: bool) -> Exemplar {
 /// (colour, normal, height, roughness, ambient occlusion, metalness).
 fn maps_in_folder(dir: &Path) -> Result<Vec<PathBuf>> {
     let entries = std::fs::read_dir(dir)
-        .map_err(|e| input_error!("{}: cannot read the folder: {e}", dir.display()))?;
+        .map_err(|e| crate::file_error!(&dir, "cannot read the folder: {e}"))?;
     let mut maps: Vec<(MapRole, bool, PathBuf)> = entries
         .flatten()
         .map(|e| e.path())
@@ -219,10 +219,10 @@ fn maps_in_folder(dir: &Path) -> Result<Vec<PathBuf>> {
     maps.sort();
     maps.dedup_by_key(|(role, _, _)| *role);
     if maps.len() < 2 {
-        return Err(input_error!(
-            "{}: found {} map named by its role (color, normal, height, roughness, ao, metalness); a map set needs two or more, or give the files as --maps A.png,B.png,...",
-            dir.display(),
-            maps.len()
+        return Err(crate::file_error!(
+            &dir,
+            "found {} map named by its role (color, normal, height, roughness, ao, metalness); a map set needs two or more, or give the files as --maps A.png,B.png,...",
+            maps.len(),
         ));
     }
     Ok(maps.into_iter().map(|(_, _, p)| p).collect())

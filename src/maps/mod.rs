@@ -19,7 +19,6 @@ use serde::{Deserialize, Serialize};
 use crate::checkpoint::Checkpoint;
 use crate::error::Result;
 use crate::exemplar::Exemplar;
-use crate::input_error;
 use crate::io::OutputFormat;
 
 /// Checkpoint metadata key holding the [`MapSet`] (JSON) of a map-set model.
@@ -116,7 +115,7 @@ impl MapSet {
         };
         serde_json::from_str(json)
             .map(Some)
-            .map_err(|e| input_error!("{}: unreadable map list ({e})", path.display()))
+            .map_err(|e| crate::file_error!(&path, "unreadable map list ({e})"))
     }
 
     pub fn write_to(&self, checkpoint: &mut Checkpoint) {

@@ -127,9 +127,10 @@ pub fn check_path(path: &Path) -> Result<()> {
     if png {
         Ok(())
     } else {
-        Err(crate::input_error!(
-            "--preview {}: a preview is a picture; give a .png",
-            path.display()
+        Err(crate::setting_error!(
+            "--preview",
+            path.display(),
+            "a preview is a picture; give a .png"
         ))
     }
 }

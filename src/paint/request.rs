@@ -173,9 +173,9 @@ impl SynthRequest {
         self.device.burn_device()?; // a missing GPU or driver fails here, before any work
         let [width, height] = self.extent()?;
         if self.is_zarr() {
-            return Err(input_error!(
-                "{}: a Zarr store is painted chunk by chunk (the zarr painter), not as one plan",
-                self.out_path().display()
+            return Err(crate::file_error!(
+                &self.out_path(),
+                "a Zarr store is painted chunk by chunk (the zarr painter), not as one plan",
             ));
         }
         if self.zarr.given() {
@@ -228,8 +228,10 @@ impl SynthRequest {
     fn image_target(&self, model: &ModelFile, size: [usize; 2]) -> Result<Target> {
         self.check_image_flags()?;
         if let Some(bits) = self.bits.filter(|b| *b != 8 && *b != 16) {
-            return Err(input_error!(
-                "--bits {bits}: PNG output is 8 or 16 bits per channel"
+            return Err(crate::setting_error!(
+                "--bits",
+                bits,
+                "PNG output is 8 or 16 bits per channel"
             ));
         }
         let model = match model {
@@ -328,8 +330,10 @@ impl SynthRequest {
         let stages = net.stages() as f32;
         let lod = self.lod.unwrap_or(stages);
         if !(0.0..=stages).contains(&lod) {
-            return Err(input_error!(
-                "--lod {lod}: this tile has {stages} stages; give 0 to {stages}"
+            return Err(crate::setting_error!(
+                "--lod",
+                lod,
+                "this tile has {stages} stages; give 0 to {stages}"
             ));
         }
         let maps = MapSet::read_from(checkpoint, Path::new(model))?;
@@ -449,22 +453,22 @@ impl SynthRequest {
     pub fn zarr_painter(&self, model: &ModelFile) -> Result<(Painter, Vec<usize>, usize)> {
         use crate::io::zarr::{DEFAULT_IMAGE_CHUNK, DEFAULT_VOLUME_CHUNK};
         if self.preview.is_some() {
-            return Err(input_error!(
-                "{}: --preview lights a map set's maps, which are written as .png or .exr, not as a Zarr store; drop --preview",
-                self.out_path().display()
+            return Err(crate::file_error!(
+                &self.out_path(),
+                "--preview lights a map set's maps, which are written as .png or .exr, not as a Zarr store; drop --preview",
             ));
         }
         if self.slice.is_some() || self.mesh.is_some() {
-            return Err(input_error!(
-                "{}: --slice and --mesh write an image or a mesh, not a Zarr store: drop them, or give a .png or .obj",
-                self.out_path().display()
+            return Err(crate::file_error!(
+                &self.out_path(),
+                "--slice and --mesh write an image or a mesh, not a Zarr store: drop them, or give a .png or .obj",
             ));
         }
         let model = model.generator()?;
         if model.maps.is_some() {
-            return Err(input_error!(
-                "{}: a map set is written as one image per map; give a .png or .exr --out",
-                self.out_path().display()
+            return Err(crate::file_error!(
+                &self.out_path(),
+                "a map set is written as one image per map; give a .png or .exr --out",
             ));
         }
         let [width, height] = self.extent()?;

@@ -171,15 +171,17 @@ impl Synth {
     fn check_options(&self) -> Result<()> {
         let dims = self.config.dims;
         if !(self.zoom.is_finite() && self.zoom > 0.0) {
-            return Err(input_error!(
-                "--zoom {}: must be a positive number",
-                self.zoom
+            return Err(crate::setting_error!(
+                "--zoom",
+                self.zoom,
+                "must be a positive number"
             ));
         }
         if !(self.noise_scale.is_finite() && self.noise_scale > 0.0) {
-            return Err(input_error!(
-                "--noise-scale {}: must be a positive number",
-                self.noise_scale
+            return Err(crate::setting_error!(
+                "--noise-scale",
+                self.noise_scale,
+                "must be a positive number"
             ));
         }
         let given = [

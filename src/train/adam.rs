@@ -153,9 +153,7 @@ impl Adam {
         self.steps = checkpoint
             .meta(&format!("{prefix}.steps"))?
             .parse()
-            .map_err(|_| {
-                crate::input_error!("{}: unreadable {prefix}.steps", checkpoint.source.display())
-            })?;
+            .map_err(|_| crate::file_error!(&checkpoint.source, "unreadable {prefix}.steps"))?;
         self.moments.clear();
         let m_prefix = format!("{prefix}.m.");
         for (name, m) in checkpoint.tensors.range(m_prefix.clone()..) {

@@ -235,13 +235,13 @@ impl TrainConfig {
     pub fn from_toml(text: &str, source: &Path) -> Result<Self> {
         let config: Self = toml::from_str(text).map_err(|e| {
             let msg = e.message().replace('\n', " ");
-            input_error!("{}: {msg}", source.display())
+            crate::file_error!(&source, "{msg}")
         })?;
         // Values are checked here too, so an error names the file that holds them.
         if let Ok(kind) = config.run_kind() {
             config
                 .check_values(&kind)
-                .map_err(|e| input_error!("{}: {e}", source.display()))?;
+                .map_err(|e| crate::file_error!(&source, "{e}"))?;
         }
         Ok(config)
     }
@@ -249,7 +249,7 @@ impl TrainConfig {
     /// Reads a TOML config file, and the keys it sets.
     pub fn from_file(path: &Path) -> Result<(Self, std::collections::BTreeSet<String>)> {
         let text = std::fs::read_to_string(path)
-            .map_err(|e| input_error!("{}: cannot read: {e}", path.display()))?;
+            .map_err(|e| crate::file_error!(&path, "cannot read: {e}"))?;
         Ok((Self::from_toml(&text, path)?, Self::keys_in(&text)))
     }
 
@@ -394,27 +394,31 @@ impl TrainConfig {
             ));
         }
         if !(0.0..=1.0).contains(&self.lr_decay) {
-            return Err(input_error!(
-                "lr_decay = {}: the decayed fraction of the run is from 0 (constant) to 1, e.g. 0.5",
-                self.lr_decay
+            return Err(crate::setting_error!(
+                "lr_decay",
+                self.lr_decay,
+                "the decayed fraction of the run is from 0 (constant) to 1, e.g. 0.5"
             ));
         }
         if !(self.k_lr >= 0.0 && self.k_lr.is_finite()) {
-            return Err(input_error!(
-                "k_lr = {}: K's learning rate, a multiple of lr, is finite and not negative, e.g. 10",
-                self.k_lr
+            return Err(crate::setting_error!(
+                "k_lr",
+                self.k_lr,
+                "K's learning rate, a multiple of lr, is finite and not negative, e.g. 10"
             ));
         }
         if !(self.diversity >= 0.0 && self.diversity.is_finite()) {
-            return Err(input_error!(
-                "diversity = {}: the diversity hinge's weight is finite and not negative, e.g. 1",
-                self.diversity
+            return Err(crate::setting_error!(
+                "diversity",
+                self.diversity,
+                "the diversity hinge's weight is finite and not negative, e.g. 1"
             ));
         }
         if !(0.0..1.0).contains(&self.coarse_until) {
-            return Err(input_error!(
-                "coarse_until = {}: the coarse part of the run is a fraction from 0 (none) to below 1, e.g. 0.5",
-                self.coarse_until
+            return Err(crate::setting_error!(
+                "coarse_until",
+                self.coarse_until,
+                "the coarse part of the run is a fraction from 0 (none) to below 1, e.g. 0.5"
             ));
         }
         if self.coarse_until > 0.0 && self.coarse_stride < 2 {
@@ -424,9 +428,10 @@ impl TrainConfig {
             ));
         }
         if !(0.0..1.0).contains(&self.average) {
-            return Err(input_error!(
-                "average = {}: the moving average's decay is at least 0 (off) and below 1, e.g. 0.99",
-                self.average
+            return Err(crate::setting_error!(
+                "average",
+                self.average,
+                "the moving average's decay is at least 0 (off) and below 1, e.g. 0.99"
             ));
         }
         self.check_sizes(kind)?;
@@ -447,15 +452,15 @@ impl TrainConfig {
     fn validate_for(&self, kind: &RunKind, exemplar: &Exemplar, path: &Path) -> Result<()> {
         if let RunKind::Volume { .. } = kind {
             if self.coarse_stride > 0 {
-                return Err(input_error!(
-                    "{}: coarse_stride is for images and solid textures; a volume trains with its one critic (coarse_stride = 0)",
-                    path.display()
+                return Err(crate::file_error!(
+                    &path,
+                    "coarse_stride is for images and solid textures; a volume trains with its one critic (coarse_stride = 0)",
                 ));
             }
             if self.resize != 1.0 {
-                return Err(input_error!(
-                    "{}: a volume exemplar takes neither --solid, --guide nor --resize",
-                    path.display()
+                return Err(crate::file_error!(
+                    &path,
+                    "a volume exemplar takes neither --solid, --guide nor --resize",
                 ));
             }
             if !self.sdf_scale.is_finite() || self.sdf_scale <= 0.0 {
@@ -472,24 +477,24 @@ impl TrainConfig {
                 RunKind::Volume { .. } => ("volume", "voxel", ""),
                 _ => ("exemplar", "pixel", " or --resize"),
             };
-            return Err(input_error!(
-                "{}: the {what} is {}, smaller than the {} {unit} crop; use a smaller --crop (a multiple of 16, e.g. {}){resize}",
-                path.display(),
+            return Err(crate::file_error!(
+                &path,
+                "the {what} is {}, smaller than the {} {unit} crop; use a smaller --crop (a multiple of 16, e.g. {}){resize}",
                 sizes.join("x"),
                 self.crop,
-                (smallest / 16 * 16).max(16)
+                (smallest / 16 * 16).max(16),
             ));
         }
         let span = (self.crop - 1) * self.coarse_stride.max(1) + 1;
         if smallest < span {
-            return Err(input_error!(
-                "{}: the exemplar is {}x{}, smaller than a coarse crop of {} points every {} pixels ({span} pixels); use a smaller --coarse-stride (at most {})",
-                path.display(),
+            return Err(crate::file_error!(
+                &path,
+                "the exemplar is {}x{}, smaller than a coarse crop of {} points every {} pixels ({span} pixels); use a smaller --coarse-stride (at most {})",
                 exemplar.width,
                 exemplar.height,
                 self.crop,
                 self.coarse_stride,
-                super::coarse::largest_stride(smallest, self.crop)
+                super::coarse::largest_stride(smallest, self.crop),
             ));
         }
         Ok(())
@@ -511,7 +516,13 @@ pub const MAX_BATCH_VALUES: usize = 1 << 26;
 
 /// Parses a duration such as `15m`, `90s`, `1h30m` or `2h` (a bare number is seconds).
 pub fn parse_duration(text: &str) -> Result<std::time::Duration> {
-    let bad = || input_error!("--time {text}: expected a duration such as 15m, 90s or 1h30m");
+    let bad = || {
+        crate::setting_error!(
+            "--time",
+            text,
+            "expected a duration such as 15m, 90s or 1h30m"
+        )
+    };
     let mut seconds = 0f64;
     let mut number = String::new();
     for ch in text.trim().chars() {
@@ -536,8 +547,10 @@ pub fn parse_duration(text: &str) -> Result<std::time::Duration> {
         return Err(bad());
     }
     if seconds > MAX_TIME_SECONDS {
-        return Err(input_error!(
-            "--time {text}: at most 8760h (a year); a run that long should checkpoint and resume"
+        return Err(crate::setting_error!(
+            "--time",
+            text,
+            "at most 8760h (a year); a run that long should checkpoint and resume"
         ));
     }
     Ok(std::time::Duration::from_secs_f64(seconds))

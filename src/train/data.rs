@@ -10,7 +10,6 @@ use super::draws::uniform;
 use super::{RunKind, TrainConfig, Trainer};
 use crate::error::Result;
 use crate::exemplar::{Exemplar, read_exemplar, read_sdf_volume};
-use crate::input_error;
 use crate::maps::{MapFiles, MapSet};
 
 /// Loads the exemplar and applies the config's resize.
@@ -108,12 +107,9 @@ impl ExemplarSource {
 
     pub(super) fn from_meta(meta: &str, checkpoint: &Path) -> Result<Self> {
         if meta.starts_with('{') {
-            serde_json::from_str(meta).map(Self::Maps).map_err(|e| {
-                input_error!(
-                    "{}: unreadable exemplar map list ({e})",
-                    checkpoint.display()
-                )
-            })
+            serde_json::from_str(meta)
+                .map(Self::Maps)
+                .map_err(|e| crate::file_error!(&checkpoint, "unreadable exemplar map list ({e})",))
         } else {
             Ok(PathBuf::from(meta).into())
         }

@@ -220,26 +220,18 @@ impl Trainer {
     ) -> Result<Self> {
         let file = run_dir.join(state.file_name());
         if !file.exists() && state == RunState::Latest {
-            return Err(input_error!(
-                "{}: no latest.ipfn to resume from; is this a training run folder?",
-                run_dir.display()
+            return Err(crate::file_error!(
+                &run_dir,
+                "no latest.ipfn to resume from; is this a training run folder?",
             ));
         }
         let lock = RunLock::acquire(run_dir)?;
-        let resumed = Self::resume_file(run_dir, &file, lock, iterations, device).map_err(|e| {
-            // What the state file says (its config, its exemplar's fingerprint) decides the
-            // refusal: name the file.
-            match e {
-                crate::Error::Input(m) if !m.contains(&file.display().to_string()) => {
-                    input_error!("{}: {m}", file.display())
-                }
-                e => e,
-            }
-        });
+        // What the state file says (its config, its exemplar's fingerprint) decides the
+        // refusal: name the file.
+        let resumed = Self::resume_file(run_dir, &file, lock, iterations, device)
+            .map_err(|e| e.in_file(&file));
         match (resumed, state) {
-            (Err(e @ crate::Error::Input(_)), RunState::Latest) => {
-                Err(run::offer_previous(run_dir, e))
-            }
+            (Err(e), RunState::Latest) if e.is_input() => Err(run::offer_previous(run_dir, e)),
             (Ok(trainer), RunState::Previous) => {
                 // The first checkpoint would make the damaged latest.ipfn the new
                 // previous.ipfn: put previous.ipfn in its place first.
@@ -267,7 +259,10 @@ impl Trainer {
         let kind = config.run_kind()?;
         let (exemplar, maps) = source.load(&config)?;
         if ckpt.meta(FINGERPRINT_KEY)? != exemplar.fingerprint().to_string() {
-            return Err(input_error!(
+            // The state file and the exemplar disagree: the state file is named, as for every
+            // other refusal of a resume, and the exemplar after it.
+            return Err(crate::file_error!(
+                &latest,
                 "{}: the exemplar changed since this run started; start a new run instead of resuming",
                 source.main_path().display()
             ));
@@ -276,9 +271,9 @@ impl Trainer {
         let device = device.clone().autodiff();
         let (gen_config, model) = GeneratorWeights::read_from(&ckpt)?;
         if gen_config != config.generator_config(&kind, exemplar.channels) {
-            return Err(input_error!(
-                "{}: generator does not match the run's config",
-                latest.display()
+            return Err(crate::file_error!(
+                &latest,
+                "generator does not match the run's config",
             ));
         }
         // With an average, the model is the average and the trained weights are stored apart.
@@ -312,7 +307,7 @@ impl Trainer {
         let iteration = ckpt
             .meta(ITERATION_KEY)?
             .parse()
-            .map_err(|_| input_error!("{}: unreadable iteration count", latest.display()))?;
+            .map_err(|_| crate::file_error!(&latest, "unreadable iteration count"))?;
         let best = run::read_best(&ckpt);
         Ok(Self {
             config,
@@ -407,8 +402,8 @@ pub fn default_run_dir(exemplar: &Path) -> PathBuf {
 
 /// A volume's refusal names the file, as other exemplar errors do.
 fn volume_error(e: crate::Error, config: &TrainConfig, source: &ExemplarSource) -> crate::Error {
-    match (config.volume, e) {
-        (true, crate::Error::Input(m)) => input_error!("{}: {m}", source.main_path().display()),
-        (_, e) => e,
+    match config.volume {
+        true => e.in_file(source.main_path()),
+        false => e,
     }
 }

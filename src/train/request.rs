@@ -137,9 +137,9 @@ impl TrainRequest {
     fn settings_given(&self) -> Result<(TrainConfig, BTreeSet<String>)> {
         let mut table = match &self.config {
             Some(path) => std::fs::read_to_string(path)
-                .map_err(|e| input_error!("{}: cannot read: {e}", path.display()))?
+                .map_err(|e| crate::file_error!(&path, "cannot read: {e}"))?
                 .parse::<toml::Table>()
-                .map_err(|e| input_error!("{}: {}", path.display(), e.message()))?,
+                .map_err(|e| crate::file_error!(&path, "{}", e.message()))?,
             None => toml::Table::new(),
         };
         if let Some(text) = &self.settings {

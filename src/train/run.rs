@@ -71,7 +71,8 @@ impl RunState {
 pub(super) fn offer_previous(run_dir: &Path, error: Error) -> Error {
     // Only a latest.ipfn that cannot be read is the file's fault (other refusals, such as a
     // changed exemplar, hold for previous.ipfn too).
-    if !error.to_string().contains(RunState::Latest.file_name()) {
+    let latest = Some(RunState::Latest.file_name().as_ref());
+    if error.path().is_none_or(|p| p.file_name() != latest) {
         return error;
     }
     let previous = run_dir.join(RunState::Previous.file_name());

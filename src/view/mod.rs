@@ -360,9 +360,7 @@ impl ViewModel {
     /// Loads `file` (or the shipped honeycomb).
     pub fn load(file: Option<&Path>, device: DeviceChoice) -> Result<Self> {
         let version = match file {
-            Some(f) => {
-                file_version(f).ok_or_else(|| input_error!("{}: cannot read", f.display()))?
-            }
+            Some(f) => file_version(f).ok_or_else(|| crate::file_error!(&f, "cannot read"))?,
             None => "shipped".to_string(),
         };
         let chosen = match file {

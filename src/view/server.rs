@@ -180,7 +180,7 @@ fn png_reply(png: &[u8]) -> Response {
 
 fn error_reply(e: &Error) -> Response {
     match e {
-        Error::Input(_) => text(StatusCode::BAD_REQUEST, &e.to_string()),
+        e if e.is_input() => text(StatusCode::BAD_REQUEST, &e.to_string()),
         _ => text(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
     }
 }
