@@ -38,6 +38,7 @@ pub mod critic;
 pub mod device;
 #[cfg(test)]
 mod docs_tests;
+pub mod draw;
 pub mod encoding;
 pub mod error;
 pub mod eval;

@@ -32,6 +32,7 @@ use crate::device::DeviceChoice;
 use crate::error::Result;
 use crate::generator::fused::matmul_into;
 use crate::generator::{GeneratorConfig, GeneratorWeights};
+use crate::input_error;
 pub use crate::model::shipped_model;
 use crate::synth::Synth;
 use crate::train::{TrainConfig, Trainer};
@@ -159,6 +160,76 @@ pub struct BenchPlan {
     pub batches: Vec<usize>,
     /// Also paint cubes of these sides with a 3D generator of the paper's size (random weights).
     pub volumes: Vec<usize>,
+}
+
+/// `ipfn bench` as a request: the flags as given, checked once into a [`BenchPlan`].
+#[derive(Debug, Clone)]
+pub struct BenchRequest {
+    pub sizes: Vec<usize>,
+    /// Devices by name; `None`: the CPU engines and every GPU that starts (not a software
+    /// adapter, which is slow: it is timed only when named).
+    pub devices: Option<Vec<String>>,
+    pub runs: usize,
+    pub train: bool,
+    pub batches: Vec<usize>,
+    pub volumes: Vec<usize>,
+}
+
+impl BenchRequest {
+    /// The plan, and a line for each device looked for and skipped.
+    pub fn plan(&self) -> Result<(BenchPlan, Vec<String>)> {
+        if self.sizes.contains(&0) || self.volumes.contains(&0) {
+            return Err(input_error!("--sizes/--volumes: sizes must be at least 1"));
+        }
+        if self.batches.contains(&0) {
+            return Err(input_error!("--batches: batch sizes must be at least 1"));
+        }
+        if self.runs == 0 {
+            return Err(crate::setting_error!("--runs", 0, "need at least one run"));
+        }
+        let (devices, skipped) = match &self.devices {
+            Some(names) => (named_devices(names)?, Vec::new()),
+            None => found_devices(),
+        };
+        let plan = BenchPlan {
+            sizes: self.sizes.clone(),
+            devices,
+            runs: self.runs,
+            train: self.train,
+            batches: self.batches.clone(),
+            volumes: self.volumes.clone(),
+        };
+        Ok((plan, skipped))
+    }
+}
+
+/// Devices named by the user, each started now so that one missing fails with its own message.
+fn named_devices(names: &[String]) -> Result<Vec<DeviceChoice>> {
+    names
+        .iter()
+        .map(|n| {
+            let d: DeviceChoice = n.parse()?;
+            d.burn_device()?;
+            Ok(d)
+        })
+        .collect()
+}
+
+/// The CPU engines and the GPUs that start, with a line for each GPU skipped.
+fn found_devices() -> (Vec<DeviceChoice>, Vec<String>) {
+    let (mut found, mut skipped) = (vec![DeviceChoice::Cpu, DeviceChoice::Flex], Vec::new());
+    for gpu in [DeviceChoice::Wgpu, DeviceChoice::Cuda] {
+        match gpu.burn_device() {
+            Ok(_) if gpu == DeviceChoice::Wgpu && crate::device::wgpu_is_software() => skipped
+                .push(
+                "wgpu: software adapter only (no GPU); skipped, name it in --devices to time it"
+                    .into(),
+            ),
+            Ok(_) => found.push(gpu),
+            Err(e) => skipped.push(format!("{}: skipped ({e})", device_name(gpu))),
+        }
+    }
+    (found, skipped)
 }
 
 /// The GPU engines to time on `device`: ipfn's generator kernel and burn's generator on GPUs

@@ -2,9 +2,7 @@
 
 use clap::Args;
 
-use crate::device::DeviceChoice;
 use crate::error::Result;
-use crate::input_error;
 
 #[derive(Debug, Args)]
 pub struct BenchArgs {
@@ -32,48 +30,18 @@ pub struct BenchArgs {
 
 pub(super) fn bench(args: BenchArgs) -> Result<()> {
     use crate::bench;
-    if args.sizes.contains(&0) || args.volumes.contains(&0) {
-        return Err(input_error!("--sizes/--volumes: sizes must be at least 1"));
-    }
-    if args.batches.contains(&0) {
-        return Err(input_error!("--batches: batch sizes must be at least 1"));
-    }
-    if args.runs == 0 {
-        return Err(input_error!("--runs 0: need at least one run"));
-    }
-    let devices = match &args.devices {
-        Some(names) => names
-            .iter()
-            .map(|n| {
-                let d: DeviceChoice = n.parse()?;
-                d.burn_device()?; // fail now, with the device's own message
-                Ok(d)
-            })
-            .collect::<Result<Vec<_>>>()?,
-        None => {
-            let mut found = vec![DeviceChoice::Cpu, DeviceChoice::Flex];
-            for gpu in [DeviceChoice::Wgpu, DeviceChoice::Cuda] {
-                match gpu.burn_device() {
-                    Ok(_) if gpu == DeviceChoice::Wgpu && crate::device::wgpu_is_software() => {
-                        eprintln!(
-                            "wgpu: software adapter only (no GPU); skipped, name it in --devices to time it"
-                        )
-                    }
-                    Ok(_) => found.push(gpu),
-                    Err(e) => eprintln!("{}: skipped ({e})", bench::device_name(gpu)),
-                }
-            }
-            found
-        }
-    };
-    let plan = bench::BenchPlan {
-        sizes: args.sizes.clone(),
-        devices,
+    let request = bench::BenchRequest {
+        sizes: args.sizes,
+        devices: args.devices,
         runs: args.runs,
         train: !args.no_train,
-        batches: args.batches.clone(),
-        volumes: args.volumes.clone(),
+        batches: args.batches,
+        volumes: args.volumes,
     };
+    let (plan, skipped) = request.plan()?;
+    for line in skipped {
+        eprintln!("{line}");
+    }
     println!(
         "ipfn {} bench on {}",
         env!("CARGO_PKG_VERSION"),
@@ -81,7 +49,7 @@ pub(super) fn bench(args: BenchArgs) -> Result<()> {
     );
     println!(
         "shipped honeycomb generator (10x128 MLP); medians of {} runs after a warm-up",
-        args.runs
+        plan.runs
     );
     println!();
     println!("| work | device | ours | floor measured now (or reference) | ours / floor |");

@@ -7,8 +7,6 @@ use clap::Args;
 
 use crate::checkpoint::Checkpoint;
 use crate::error::Result;
-use crate::input_error;
-use crate::io::OutputFormat;
 
 #[derive(Debug, Args)]
 pub struct ImportArgs {
@@ -96,71 +94,14 @@ pub(super) fn import(args: ImportArgs) -> Result<()> {
 }
 
 pub(super) fn draw(args: DrawArgs) -> Result<()> {
-    use crate::procedural;
-    if args.size == 0 {
-        return Err(input_error!("--size 0: must be at least 1"));
-    }
-    let n = args.size;
-    if args.pattern == "gyroid" {
-        let period = args.period.unwrap_or(32);
-        if period < 2 {
-            return Err(crate::setting_error!(
-                "--period",
-                period,
-                "must be at least 2 voxels"
-            ));
-        }
-        let sdf = if args.graded {
-            procedural::graded_gyroid_sdf(n, period as f32, 0.1, 0.9)
-        } else {
-            procedural::gyroid_sdf(n, period as f32, 0.4)
-        };
-        let mut writer = crate::io::VolumeWriter::create(&args.out, n, n, n, 1)?;
-        writer.write_slab(&sdf)?;
-        writer.finish()?;
-        eprintln!(
-            "wrote {} ({n}x{n}x{n} gyroid sheet SDF, period {period} voxels)",
-            args.out.display()
-        );
-        return Ok(());
-    }
-    if args.pattern == "material" {
-        std::fs::create_dir_all(&args.out)
-            .map_err(|e| crate::file_error!(&args.out, "cannot create folder: {e}"))?;
-        let maps = procedural::material(n, n, 32);
-        for ((name, channels), unit) in procedural::MATERIAL_MAPS.iter().zip(maps) {
-            let path = args.out.join(format!("{name}.png"));
-            let values: Vec<f32> = unit.iter().map(|v| v * 2.0 - 1.0).collect();
-            let mut writer = crate::io::ImageWriter::create(
-                &path,
-                OutputFormat::Png { bits: 16 },
-                n,
-                n,
-                *channels,
-            )?;
-            writer.write_rows(&values)?;
-            writer.finish()?;
-        }
-        eprintln!(
-            "wrote {}/{{albedo,normal,roughness,height}}.png ({n}x{n} 16-bit material)",
-            args.out.display()
-        );
-        return Ok(());
-    }
-    let unit = match args.pattern.as_str() {
-        "bricks" => procedural::bricks(n, n, 32, 16),
-        "weave" => procedural::weave(n, n, 8),
-        "stripes" => procedural::stripes(n, n, 40.0),
-        "graded" => procedural::graded_stripes(n, n, 16.0, 0.15, 0.85),
-        other => {
-            return Err(input_error!(
-                "unknown pattern '{other}'; use bricks, weave, stripes, graded, material or gyroid"
-            ));
-        }
+    let request = crate::draw::DrawRequest {
+        pattern: args.pattern,
+        size: args.size,
+        period: args.period,
+        graded: args.graded,
+        out: args.out,
     };
-    let values: Vec<f32> = unit.iter().map(|v| v * 2.0 - 1.0).collect();
-    crate::io::write_png(&args.out, n, n, 3, &values)?;
-    eprintln!("wrote {} ({n}x{n} {})", args.out.display(), args.pattern);
+    eprintln!("{}", request.draw()?);
     Ok(())
 }
 

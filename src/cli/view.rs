@@ -69,30 +69,12 @@ fn resolve(path: Option<&Path>) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
 pub(super) fn view(args: ViewArgs) -> Result<()> {
     let device = DeviceChoice::resolve(&args.device)?;
     device.burn_device()?;
-    if !args.export_dir.is_dir() {
-        return Err(crate::setting_error!(
-            "--export-dir",
-            args.export_dir.display(),
-            "no such folder"
-        ));
-    }
-    if args.cache_mb == 0 || args.cache_mb > 1 << 20 {
-        return Err(crate::setting_error!(
-            "--cache-mb",
-            args.cache_mb,
-            "give 1 to 1048576"
-        ));
-    }
+    let config = ServerConfig::new(args.cache_mb, args.export_dir.clone())?;
     let (model, run) = resolve(args.path.as_deref())?;
     let source = ModelSource::new(model.clone(), device);
     if run.is_none() {
         source.current()?; // a bad model file fails here, with its one-line error
     }
-    let config = ServerConfig {
-        cache_bytes: args.cache_mb << 20,
-        export_dir: args.export_dir.clone(),
-        ..ServerConfig::default()
-    };
     let addr = SocketAddr::new(args.host, args.port);
     let server = ViewServer::bind(addr, source, run.clone(), config, Box::new(export))?;
     if !args.host.is_loopback() {

@@ -55,6 +55,31 @@ impl Default for ServerConfig {
     }
 }
 
+impl ServerConfig {
+    /// The defaults with the user's cache size (in MiB) and export folder, both checked.
+    pub fn new(cache_mb: usize, export_dir: PathBuf) -> Result<Self> {
+        if !export_dir.is_dir() {
+            return Err(crate::setting_error!(
+                "--export-dir",
+                export_dir.display(),
+                "no such folder"
+            ));
+        }
+        if cache_mb == 0 || cache_mb > 1 << 20 {
+            return Err(crate::setting_error!(
+                "--cache-mb",
+                cache_mb,
+                "give 1 to 1048576"
+            ));
+        }
+        Ok(Self {
+            cache_bytes: cache_mb << 20,
+            export_dir,
+            ..Self::default()
+        })
+    }
+}
+
 /// A tile asked for: the model and view, its top-left pixel and side, and its cache key.
 struct TileAsk {
     model: Arc<ViewModel>,
