@@ -71,6 +71,20 @@ fn latent_field_matches_reference() {
     assert!(diff < 1e-5, "latent field max abs difference {diff}");
 }
 
+/// The burn devices evaluate every 13th reference point (5,042 of them): 13 is prime to the
+/// image's 256 columns, so the kept points visit every column and every row.
+const BURN_STRIDE: usize = 13;
+
+/// Every `stride`-th record of `width` values.
+fn every_nth(values: &[f32], width: usize, stride: usize) -> Vec<f32> {
+    values
+        .chunks_exact(width)
+        .step_by(stride)
+        .flatten()
+        .copied()
+        .collect()
+}
+
 fn output_matches_reference(device: DeviceChoice) {
     let (config, weights) = honeycomb();
     let points = reference_points();
@@ -91,17 +105,27 @@ fn output_matches_reference(device: DeviceChoice) {
             out
         }
         Some(device) => {
+            // Every BURN_STRIDE-th point: the generator is pointwise, so a subset is exact for its
+            // points, and lavapipe (CI's software Vulkan) takes minutes over all 65,536.
+            let kept = every_nth(&points, 2, BURN_STRIDE);
+            let m = kept.len() / 2;
             let generator = Generator::from_weights(&weights, &device);
-            let u: Vec<f32> = points.iter().map(|p| p * config.latent_scale).collect();
-            let mut latent = vec![0f32; n * 5];
+            let u: Vec<f32> = kept.iter().map(|p| p * config.latent_scale).collect();
+            let mut latent = vec![0f32; m * 5];
             field.fill(&u, &mut latent);
-            let p = Tensor::<2>::from_data(TensorData::new(points, [n, 2]), &device);
-            let z = Tensor::<2>::from_data(TensorData::new(latent, [n, 5]), &device);
+            let p = Tensor::<2>::from_data(TensorData::new(kept, [m, 2]), &device);
+            let z = Tensor::<2>::from_data(TensorData::new(latent, [m, 5]), &device);
             generator.forward(p, z).try_into_vec_as::<f32>().unwrap()
         }
     };
-    let (_, expected) = read_npy(&data("official-honeycomb/output.npy")).unwrap();
-    let diff = max_abs_diff(&ours, &to_points_major(&expected, 3));
+    let mut expected = to_points_major(
+        &read_npy(&data("official-honeycomb/output.npy")).unwrap().1,
+        3,
+    );
+    if ours.len() < n * 3 {
+        expected = every_nth(&expected, 3, BURN_STRIDE);
+    }
+    let diff = max_abs_diff(&ours, &expected);
     eprintln!("{device:?}: max abs difference to the authors' output: {diff:.2e}");
     assert!(
         diff < TOLERANCE,
