@@ -13,10 +13,12 @@ scan's size), PEER_SAMPLES the crate's samples (default 2: it takes about a minu
 then `ipfn synth --model OUT_DIR/NAME/best.ipfn` per seed (seed 0 also `--preview`, the
 material lit), each map scored by `ipfn eval --images SCAN_MAP SAMPLE_MAP --json`, and
 `texture-synthesis generate COLOUR_MAP` per seed scored the same way when the crate's CLI is on
-PATH. The table is printed in Markdown; logs and samples stay in OUT_DIR.
+PATH. The table is printed in Markdown; logs and samples stay in OUT_DIR. IPFN_TRAIN_FLAGS adds
+flags to every training (e.g. `IPFN_TRAIN_FLAGS="--resize 0.25"` for another working scale).
 """
 
 import json
+import os
 import re
 import shutil
 import statistics
@@ -62,8 +64,9 @@ def train_and_score(binary, folder, out, time, samples):
     log = out / f"{folder.name}.log"
     log.write_text("")
     run_dir = out / folder.name
+    extra = os.environ.get("IPFN_TRAIN_FLAGS", "").split()
     done = run([binary, "train", "--maps", folder, "--time", time, "--seed", 0, "--out", run_dir,
-                "--device", "cpu"], log)
+                "--device", "cpu", *extra], log)
     steps = [m.groups() for m in ITERATIONS.finditer(done.stderr)]
     iterations = steps[-1][0] if steps else "?"
     scans = maps_of(folder)
@@ -90,7 +93,7 @@ def texture_synthesis(binary, folder, out, size, samples):
     """SIFID and structure of the crate's samples of the colour map, or None without it."""
     tool = shutil.which("texture-synthesis")
     colour = maps_of(folder).get("color")
-    if tool is None or colour is None:
+    if tool is None or colour is None or samples == 0:
         return None
     sifids, structures = [], []
     for seed in range(samples):
@@ -113,7 +116,7 @@ def main(argv):
     peer_samples = int(argv[4]) if len(argv) > 4 else 2
     binary = argv[5] if len(argv) > 5 else str(ROOT / "target/release/ipfn")
     out.mkdir(parents=True, exist_ok=True)
-    print(f"`ipfn train --maps SET --time {time} --seed 0`, best.ipfn, {samples} samples at the "
+    print(f"`ipfn train --maps SET --time {time} --seed 0{(' ' + os.environ['IPFN_TRAIN_FLAGS']) if os.environ.get('IPFN_TRAIN_FLAGS') else ''}`, best.ipfn, {samples} samples at the "
           f"scan's size ({peer_samples} of texture-synthesis; mean ± std); floor: the scan's "
           "halves against the whole.\n")
     print("| set | map | structure | floor | ratio | target (2.5x floor) | SIFID of colour | "
