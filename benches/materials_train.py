@@ -31,6 +31,7 @@ from PIL import Image
 ROOT = Path(__file__).resolve().parents[1]
 FLOOR_RATIO = 2.5
 ITERATIONS = re.compile(r"iter (\d+)/(\d+)")
+TRAIN_FLAGS = os.environ.get("IPFN_TRAIN_FLAGS", "").split()
 
 
 def run(args, log=None):
@@ -64,9 +65,8 @@ def train_and_score(binary, folder, out, time, samples):
     log = out / f"{folder.name}.log"
     log.write_text("")
     run_dir = out / folder.name
-    extra = os.environ.get("IPFN_TRAIN_FLAGS", "").split()
     done = run([binary, "train", "--maps", folder, "--time", time, "--seed", 0, "--out", run_dir,
-                "--device", "cpu", *extra], log)
+                "--device", "cpu", *TRAIN_FLAGS], log)
     steps = [m.groups() for m in ITERATIONS.finditer(done.stderr)]
     iterations = steps[-1][0] if steps else "?"
     scans = maps_of(folder)
@@ -116,7 +116,8 @@ def main(argv):
     peer_samples = int(argv[4]) if len(argv) > 4 else 2
     binary = argv[5] if len(argv) > 5 else str(ROOT / "target/release/ipfn")
     out.mkdir(parents=True, exist_ok=True)
-    print(f"`ipfn train --maps SET --time {time} --seed 0{(' ' + os.environ['IPFN_TRAIN_FLAGS']) if os.environ.get('IPFN_TRAIN_FLAGS') else ''}`, best.ipfn, {samples} samples at the "
+    flags = "".join(f" {flag}" for flag in TRAIN_FLAGS)
+    print(f"`ipfn train --maps SET --time {time} --seed 0{flags}`, best.ipfn, {samples} samples at the "
           f"scan's size ({peer_samples} of texture-synthesis; mean ± std); floor: the scan's "
           "halves against the whole.\n")
     print("| set | map | structure | floor | ratio | target (2.5x floor) | SIFID of colour | "
