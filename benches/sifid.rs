@@ -20,7 +20,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use burn::prelude::*;
-use ipfn::device::DeviceChoice;
 use ipfn::generator::{GeneratorConfig, GeneratorWeights};
 use ipfn::metrics::{self, ModelReport};
 use ipfn::train::{TrainConfig, Trainer};
@@ -66,12 +65,8 @@ fn evaluate(
     first_seed: u64,
 ) -> ModelReport {
     metrics::evaluate_model(
-        config,
-        weights,
+        metrics::Samples::cpu(config, weights, samples, first_seed),
         exemplar,
-        samples,
-        first_seed,
-        DeviceChoice::Cpu,
     )
     .expect("evaluation runs")
 }

@@ -7,15 +7,15 @@
 
 use std::path::Path;
 
-use ipfn::device::DeviceChoice;
-use ipfn::metrics::evaluate_model;
+use ipfn::metrics::{Samples, evaluate_model};
 use ipfn::model::shipped_model;
 
 fn main() -> ipfn::Result<()> {
     let (config, weights) = shipped_model()?;
     let exemplar = ipfn::exemplar::read_exemplar(Path::new("exemplars/honeycomb.png"))?;
     // `ipfn eval --exemplar exemplars/honeycomb.png --samples 2`
-    let report = evaluate_model(&config, &weights, &exemplar, 2, 0, DeviceChoice::Cpu)?;
+    // Two samples (seeds 0 and 1) painted on the CPU.
+    let report = evaluate_model(Samples::cpu(&config, &weights, 2, 0), &exemplar)?;
     println!(
         "SIFID {:.3} ± {:.3}; structure {:.4} (floor {:.4}); seam score {:.3} (exemplar laid 2x2: {:.3}); period {:.1} x {:.1} px",
         report.sifid.mean,

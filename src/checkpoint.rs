@@ -238,22 +238,27 @@ pub fn write_module<M: burn::module::Module>(
     });
 }
 
-/// Replaces every float parameter of `module` by `{prefix}.{path}` from `checkpoint`, keeping
-/// parameter identities and whether they require gradients.
-pub fn read_module<M: burn::module::Module>(
-    module: M,
-    prefix: &str,
-    checkpoint: &Checkpoint,
-) -> Result<M> {
+/// A change to each float parameter of a module, told the parameter's path (`layers.0.weight`),
+/// which names it in a checkpoint and in an optimiser's state ([`map_by_path`]).
+pub trait MapByPath {
+    fn map<const D: usize>(
+        &mut self,
+        path: &str,
+        id: burn::module::ParamId,
+        tensor: burn::tensor::Tensor<D>,
+    ) -> burn::tensor::Tensor<D>;
+}
+
+/// Applies `f` to every float parameter of `module`, keeping parameter identities and whether
+/// each requires gradients.
+pub fn map_by_path<M: burn::module::Module, F: MapByPath>(module: M, f: &mut F) -> M {
     use burn::module::Param;
-    use burn::tensor::{Tensor, TensorData};
-    struct Load<'a> {
+    use burn::tensor::Tensor;
+    struct Walk<'a, F> {
         path: Vec<String>,
-        prefix: &'a str,
-        checkpoint: &'a Checkpoint,
-        error: Option<crate::Error>,
+        f: &'a mut F,
     }
-    impl burn::module::ModuleMapper for Load<'_> {
+    impl<F: MapByPath> burn::module::ModuleMapper for Walk<'_, F> {
         fn enter_module(&mut self, name: &str, _: &str) {
             self.path.push(name.to_string());
         }
@@ -262,35 +267,63 @@ pub fn read_module<M: burn::module::Module>(
         }
         fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
             let (id, tensor, mapper) = param.consume();
-            let name = format!("{}.{}", self.prefix, self.path.join("."));
+            let require_grad = tensor.is_require_grad();
+            let mapped = self.f.map(&self.path.join("."), id, tensor);
+            let mapped = match require_grad && !mapped.is_require_grad() {
+                true => mapped.require_grad(),
+                false => mapped,
+            };
+            Param::from_mapped_value(id, mapped, mapper)
+        }
+    }
+    module.map(&mut Walk {
+        path: Vec::new(),
+        f,
+    })
+}
+
+/// Replaces every float parameter of `module` by `{prefix}.{path}` from `checkpoint`, keeping
+/// parameter identities and whether they require gradients.
+pub fn read_module<M: burn::module::Module>(
+    module: M,
+    prefix: &str,
+    checkpoint: &Checkpoint,
+) -> Result<M> {
+    use burn::tensor::{Tensor, TensorData};
+    struct Load<'a> {
+        prefix: &'a str,
+        checkpoint: &'a Checkpoint,
+        error: Option<crate::Error>,
+    }
+    impl MapByPath for Load<'_> {
+        fn map<const D: usize>(
+            &mut self,
+            path: &str,
+            _: burn::module::ParamId,
+            tensor: Tensor<D>,
+        ) -> Tensor<D> {
             let shape = tensor.dims();
-            let tensor = match self.checkpoint.tensor(&name, &shape) {
-                Ok(values) => {
-                    let loaded = Tensor::<D>::from_data(
-                        TensorData::new(values.to_vec(), shape),
-                        &tensor.device(),
-                    );
-                    if tensor.is_require_grad() {
-                        loaded.require_grad()
-                    } else {
-                        loaded
-                    }
-                }
+            match self
+                .checkpoint
+                .tensor(&format!("{}.{path}", self.prefix), &shape)
+            {
+                Ok(values) => Tensor::<D>::from_data(
+                    TensorData::new(values.to_vec(), shape),
+                    &tensor.device(),
+                ),
                 Err(e) => {
                     self.error.get_or_insert(e);
                     tensor
                 }
-            };
-            Param::from_mapped_value(id, tensor, mapper)
+            }
         }
     }
     let mut load = Load {
-        path: Vec::new(),
         prefix,
         checkpoint,
         error: None,
     };
-    let module = module.map(&mut load);
+    let module = map_by_path(module, &mut load);
     match load.error {
         Some(e) => Err(e),
         None => Ok(module),

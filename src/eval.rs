@@ -71,12 +71,14 @@ impl EvalRequest {
                 Ok(Report::Tile(report))
             }
             ModelFile::Generator(model) => metrics::evaluate_model(
-                &model.config,
-                &model.weights,
+                metrics::Samples {
+                    config: &model.config,
+                    weights: &model.weights,
+                    count: self.samples,
+                    seed: self.seed,
+                    device: self.device,
+                },
                 &exemplar,
-                self.samples,
-                self.seed,
-                self.device,
             )
             .map(|r| Report::Generator(Box::new(r)))
             .map_err(|e| e.in_file(&self.exemplar)),

@@ -10,7 +10,6 @@ use std::time::Duration;
 use burn::prelude::*;
 use common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
-use ipfn::device::DeviceChoice;
 use ipfn::train::{Scale, TrainConfig, Trainer};
 
 #[test]
@@ -317,7 +316,7 @@ fn it_learns_the_period_of_stripes() {
     let reference = ipfn::exemplar::read_exemplar(&d.join("stripes.png")).unwrap();
     let (gc, trained) = trainer.model();
     let sifid = |w: &ipfn::generator::GeneratorWeights| {
-        ipfn::metrics::sample_scores(&gc, w, &reference, 4, 0, DeviceChoice::Cpu)
+        ipfn::metrics::sample_scores(ipfn::metrics::Samples::cpu(&gc, w, 4, 0), &reference)
             .unwrap()
             .sifid
             .mean

@@ -31,7 +31,7 @@ pub fn fit(
 ) -> PyResult<String> {
     let request = FitRequest {
         photo,
-        maps,
+        maps: maps.map(ipfn::maps::MapSetRequest::files),
         period: period.map(|(w, h)| [h, w]),
         time,
         iterations,

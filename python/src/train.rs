@@ -33,7 +33,7 @@ pub fn train(
 ) -> PyResult<PathBuf> {
     let request = TrainRequest {
         exemplar,
-        maps,
+        maps: maps.map(ipfn::maps::MapSetRequest::files),
         config,
         settings,
         out,

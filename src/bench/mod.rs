@@ -272,10 +272,40 @@ pub fn run(plan: &BenchPlan, mut row: impl FnMut(&Row)) -> Result<Vec<Row>> {
     Ok(rows)
 }
 
-/// Images of `plan.sizes` with the shipped model on every device and engine.
-fn synth_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
-    let (config, weights) = shipped_model()?;
-    let shapes = config.layer_shapes();
+/// One engine that bench rows time: a model's painter on one device, the rows' device name,
+/// and the burn device its floor runs on (none on the fused CPU path).
+struct Engine {
+    device: DeviceChoice,
+    name: String,
+    painter: crate::synth::Painter,
+    burn_device: Option<Device>,
+    shapes: Vec<(usize, usize)>,
+}
+
+impl Engine {
+    /// The row of `work`, which took `ours` seconds over `points` points, beside the floor for
+    /// as many points, timed now.
+    fn row(&self, work: String, ours: f64, points: usize, runs: usize) -> Row {
+        let burn_device = self.burn_device.as_ref();
+        let (floor, floor_s) = floor(self.device, burn_device, &self.shapes, points, runs);
+        Row {
+            work,
+            device: self.name.clone(),
+            ours_s: ours,
+            floor,
+            floor_s: Some(floor_s),
+        }
+    }
+}
+
+/// Calls `f` with the model's painter on every device of the plan and each of its engines, one
+/// painter at a time.
+fn for_each_engine(
+    plan: &BenchPlan,
+    config: &GeneratorConfig,
+    weights: &GeneratorWeights,
+    mut f: impl FnMut(&Engine) -> Result<()>,
+) -> Result<()> {
     for &device in &plan.devices {
         let burn_device = device.burn_device()?;
         for kernel in engines(device) {
@@ -284,44 +314,50 @@ fn synth_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
                 .device(device)
                 .gpu_kernel(kernel)
                 .painter()?;
-            let name = engine_name(device, painter.engine());
-            for &n in &plan.sizes {
-                let ours = time(plan.runs, || {
-                    std::hint::black_box(painter.render(&[0, 0], &[n, n]));
-                });
-                let (floor, floor_s) =
-                    floor(device, burn_device.as_ref(), &shapes, n * n, plan.runs);
-                emit(Row {
-                    work: format!("synth {n}²"),
-                    device: name.clone(),
-                    ours_s: ours,
-                    floor,
-                    floor_s: Some(floor_s),
-                });
-                if let Some(&(_, authors)) = AUTHORS_H100_SYNTH_S.iter().find(|(s, _)| *s == n)
-                    && is_gpu(device)
-                {
-                    emit(Row {
-                        work: format!("synth {n}²"),
-                        device: "authors' PyTorch on one H100 (not re-run)".into(),
-                        ours_s: authors,
-                        floor: format!("ours is {:.2}x its time", ours / authors),
-                        floor_s: None,
-                    });
-                }
-                if n == 1024 && device == DeviceChoice::Cpu {
-                    emit(Row {
-                        work: "synth 1024²".into(),
-                        device: "authors' PyTorch (reference machine, not re-run)".into(),
-                        ours_s: AUTHORS_SYNTH_1024_S,
-                        floor: format!("{:.1}x slower than ours", AUTHORS_SYNTH_1024_S / ours),
-                        floor_s: None,
-                    });
-                }
-            }
+            f(&Engine {
+                device,
+                name: engine_name(device, painter.engine()),
+                painter,
+                burn_device: burn_device.clone(),
+                shapes: config.layer_shapes(),
+            })?;
         }
     }
     Ok(())
+}
+
+/// Images of `plan.sizes` with the shipped model on every device and engine.
+fn synth_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
+    let (config, weights) = shipped_model()?;
+    for_each_engine(plan, &config, &weights, |engine| {
+        for &n in &plan.sizes {
+            let ours = time(plan.runs, || {
+                std::hint::black_box(engine.painter.render(&[0, 0], &[n, n]));
+            });
+            emit(engine.row(format!("synth {n}²"), ours, n * n, plan.runs));
+            if let Some(&(_, authors)) = AUTHORS_H100_SYNTH_S.iter().find(|(s, _)| *s == n)
+                && is_gpu(engine.device)
+            {
+                emit(Row {
+                    work: format!("synth {n}²"),
+                    device: "authors' PyTorch on one H100 (not re-run)".into(),
+                    ours_s: authors,
+                    floor: format!("ours is {:.2}x its time", ours / authors),
+                    floor_s: None,
+                });
+            }
+            if n == 1024 && engine.device == DeviceChoice::Cpu {
+                emit(Row {
+                    work: "synth 1024²".into(),
+                    device: "authors' PyTorch (reference machine, not re-run)".into(),
+                    ours_s: AUTHORS_SYNTH_1024_S,
+                    floor: format!("{:.1}x slower than ours", AUTHORS_SYNTH_1024_S / ours),
+                    floor_s: None,
+                });
+            }
+        }
+        Ok(())
+    })
 }
 
 /// Cubes of `plan.volumes` with a 3D generator of the paper's size (random weights).
@@ -331,45 +367,21 @@ fn volume_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
         .with_channels(1)
         .with_crop(64);
     let weights = GeneratorWeights::random(&config);
-    let shapes = config.layer_shapes();
-    for (device, kernel) in plan
-        .devices
-        .iter()
-        .flat_map(|&d| engines(d).into_iter().map(move |k| (d, k)))
-    {
-        let painter = Synth::new(config.clone(), weights.clone())
-            .seed(1)
-            .device(device)
-            .gpu_kernel(kernel)
-            .painter()?;
-        let name = engine_name(device, painter.engine());
-        let burn_device = device.burn_device()?;
+    let runs = plan.runs.min(2);
+    for_each_engine(plan, &config, &weights, |engine| {
         for &n in &plan.volumes {
             // Slabs of about a million voxels, as `ipfn synth --depth` renders them.
             let slab = (crate::synth::DEFAULT_BAND_PIXELS).div_ceil(n * n).max(1);
-            let ours = time(plan.runs.min(2), || {
+            let ours = time(runs, || {
                 let mut z = 0;
                 while z < n {
                     let d = slab.min(n - z);
-                    std::hint::black_box(painter.render(&[z as i64, 0, 0], &[d, n, n]));
+                    std::hint::black_box(engine.painter.render(&[z as i64, 0, 0], &[d, n, n]));
                     z += d;
                 }
             });
-            let voxels = n * n * n;
-            let (floor, floor_s) = floor(
-                device,
-                burn_device.as_ref(),
-                &shapes,
-                voxels,
-                plan.runs.min(2),
-            );
-            emit(Row {
-                work: format!("volume {n}³ (3D 10x128 MLP)"),
-                device: name.clone(),
-                ours_s: ours,
-                floor,
-                floor_s: Some(floor_s),
-            });
+            let work = format!("volume {n}³ (3D 10x128 MLP)");
+            emit(engine.row(work, ours, n * n * n, runs));
             if n == 512 {
                 emit(Row {
                     work: "volume 512³".into(),
@@ -380,8 +392,8 @@ fn volume_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
                 });
             }
         }
-    }
-    Ok(())
+        Ok(())
+    })
 }
 
 /// One training iteration per batch size on every device that trains.

@@ -1,11 +1,11 @@
 //! `ipfn fit`: fit a periodic network to a photo and write the seamless tile and its model.
 
-use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
 
+use super::maps::MapSetArgs;
 use crate::error::Result;
 use crate::fit::request::{FitOutcome, FitRequest, OpenedFit};
 use crate::fit::run::Progress;
@@ -14,27 +14,10 @@ use crate::fit::{FitEnd, Fitter};
 #[derive(Debug, Args)]
 pub struct FitArgs {
     /// The photo: PNG (8/16-bit), JPEG or EXR. Not needed with --resume or --maps.
+    #[arg(conflicts_with = "maps")]
     pub photo: Option<PathBuf>,
-    /// A material map set fitted by one network, so the maps stay aligned: the files, or a
-    /// folder of maps named by role (color, normal, height, roughness, ao, metalness).
-    #[arg(
-        long,
-        value_delimiter = ',',
-        value_name = "FILES",
-        conflicts_with = "photo"
-    )]
-    pub maps: Option<Vec<PathBuf>>,
-    /// Which maps are normal maps, by file stem (default: the maps named as normal maps).
-    #[arg(long, value_delimiter = ',', value_name = "NAMES", requires = "maps")]
-    pub normal_maps: Option<Vec<String>>,
-    /// Resample maps of another size to the first map's size (maps of mixed bit depths are
-    /// read as they are, without it).
-    #[arg(long, requires = "maps")]
-    pub resize_maps: bool,
-    /// The normal maps' convention: gl (OpenGL, green up) or dx (DirectX, green down; read
-    /// and written back as DirectX). Default: as each map's name says (NormalDX, nor_dx: dx).
-    #[arg(long, value_name = "gl|dx", value_parser = ["gl", "dx"], requires = "maps")]
-    pub normal_convention: Option<String>,
+    #[command(flatten)]
+    pub maps: MapSetArgs,
     /// A mask of the photo's size: dark pixels (at or below half gray) are left out of the fit
     /// and filled in by the periodic structure.
     #[arg(long, value_name = "PATH")]
@@ -108,10 +91,7 @@ impl FitArgs {
     pub fn request(&self) -> FitRequest {
         FitRequest {
             photo: self.photo.clone(),
-            maps: self.maps.clone(),
-            normal_maps: self.normal_maps.clone(),
-            resize_maps: self.resize_maps,
-            directx_normals: self.normal_convention.as_deref().map(|c| c == "dx"),
+            maps: self.maps.request(),
             mask: self.mask.clone(),
             period: self.period,
             out: self.out.clone(),
@@ -206,16 +186,11 @@ fn run_with_progress(
     deadline: Option<Instant>,
     quiet: bool,
 ) -> Result<FitEnd> {
-    let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
-        let bar = indicatif::ProgressBar::new(fitter.stage_iterations());
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{prefix} {bar:30} {pos}/{len}  {per_sec}  eta {eta}  {msg}",
-            )
-            .expect("valid progress template"),
-        );
-        bar
-    });
+    let bar = super::progress_bar(
+        !quiet,
+        fitter.stage_iterations(),
+        "{prefix} {bar:30} {pos}/{len}  {per_sec}  eta {eta}  {msg}",
+    );
     let mut psnr = f64::NAN;
     let end = fitter.run(crate::stop::flag(), deadline, |p: &Progress| {
         psnr = p.psnr.unwrap_or(psnr);

@@ -5,6 +5,7 @@
 mod bench;
 mod eval;
 mod fit;
+mod maps;
 mod synth;
 mod tools;
 mod train;
@@ -86,3 +87,13 @@ pub fn run() -> Result<()> {
 
 #[cfg(test)]
 mod flag_tests;
+
+/// A progress bar of `total` steps drawn with `template`, on a terminal when `show`.
+fn progress_bar(show: bool, total: u64, template: &str) -> Option<indicatif::ProgressBar> {
+    use std::io::IsTerminal;
+    (show && std::io::stderr().is_terminal()).then(|| {
+        indicatif::ProgressBar::new(total).with_style(
+            indicatif::ProgressStyle::with_template(template).expect("valid progress template"),
+        )
+    })
+}

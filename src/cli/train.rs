@@ -1,11 +1,11 @@
 //! `ipfn train`: start or resume a run, show progress, stop cleanly on Ctrl-C.
 
-use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
 
+use super::maps::MapSetArgs;
 use crate::error::Result;
 use crate::train::request::{OpenedRun, TrainRequest};
 use crate::train::{RunEnd, TrainOverrides, Trainer};
@@ -14,6 +14,7 @@ use crate::train::{RunEnd, TrainOverrides, Trainer};
 pub struct TrainArgs {
     /// The exemplar: PNG (8/16-bit), JPEG or EXR; gray, RGB or RGBA (alpha is learned as a
     /// channel). Not needed with --resume.
+    #[arg(conflicts_with = "maps")]
     pub exemplar: Option<PathBuf>,
     /// TOML config (see configs/); flags below override it. Default: configs/default.toml's values.
     #[arg(long, value_name = "FILE")]
@@ -28,31 +29,8 @@ pub struct TrainArgs {
     /// before latest.ipfn), for when latest.ipfn is damaged.
     #[arg(long, requires = "resume")]
     pub from_previous: bool,
-    /// A material map set instead of one image: aligned maps of one size
-    /// (albedo.png,normal.png,roughness.png,height.png), or a folder of them named by role
-    /// (color, normal, height, roughness, ao, metalness and their usual spellings), each read
-    /// and painted back at its own bit depth (a gray map stored as RGB is read as gray, an
-    /// opaque alpha dropped), learned together; synth writes one file per map.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        value_name = "FILES",
-        conflicts_with = "exemplar"
-    )]
-    pub maps: Option<Vec<PathBuf>>,
-    /// Which maps are normal maps (renormalised to unit length on output), by file stem.
-    /// Default: the maps named as normal maps (normal, nor_gl, NormalGL, NormalDX, ...); pass
-    /// "" for none.
-    #[arg(long, value_delimiter = ',', value_name = "NAMES", requires = "maps")]
-    pub normal_maps: Option<Vec<String>>,
-    /// Resample maps of another size to the first map's size (maps of mixed bit depths are
-    /// read as they are, without it).
-    #[arg(long, requires = "maps")]
-    pub resize_maps: bool,
-    /// The normal maps' convention: gl (OpenGL, green up) or dx (DirectX, green down; read
-    /// and written back as DirectX). Default: as each map's name says (NormalDX, nor_dx: dx).
-    #[arg(long, value_name = "gl|dx", value_parser = ["gl", "dx"], requires = "maps")]
-    pub normal_convention: Option<String>,
+    #[command(flatten)]
+    pub maps: MapSetArgs,
     /// Where to train: auto (the best present: cuda where it starts, else a wgpu GPU, else
     /// the CPU; the choice is printed), flex (CPU), wgpu (GPU) or cuda (NVIDIA GPU; a build
     /// with --features cuda).
@@ -70,10 +48,7 @@ impl TrainArgs {
     pub fn request(&self) -> TrainRequest {
         TrainRequest {
             exemplar: self.exemplar.clone(),
-            maps: self.maps.clone(),
-            normal_maps: self.normal_maps.clone(),
-            resize_maps: self.resize_maps,
-            directx_normals: self.normal_convention.as_deref().map(|c| c == "dx"),
+            maps: self.maps.request(),
             config: self.config.clone(),
             settings: None,
             flags: self.overrides.clone(),
@@ -97,21 +72,18 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
         lines,
     } = args.request().open()?;
     lines.into_iter().for_each(say);
-    say(start_line(&trainer, device));
-    say(format!(
-        "watch it in a browser: ipfn view {}",
-        trainer.run_dir().display()
-    ));
-    if !args.quiet
-        && let Some(floor) = trainer.structure_floor()?
-    {
-        say(floor_line(&floor));
+    if !args.quiet {
+        opening_lines(&trainer, device)?.into_iter().for_each(say);
     }
     crate::stop::install(crate::stop::OnSignal::FinishStep);
     let (start, first) = (Instant::now(), trainer.iteration);
-    let bar = iteration_bar(!args.quiet, trainer.config.iterations, first);
+    let bar = super::progress_bar(
+        !args.quiet,
+        trainer.config.iterations,
+        "{bar:30} {pos}/{len} it  {per_sec}  eta {eta}  {msg}",
+    )
+    .inspect(|bar| bar.set_position(first));
     let end = run_with_progress(&mut trainer, bar.as_ref(), args.quiet)?;
-    let latest = trainer.run_dir().join("latest.ipfn");
     if end == RunEnd::Stopped {
         if let Some(bar) = &bar {
             bar.abandon();
@@ -125,10 +97,25 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
         "trained {} iterations in {:.1} s; model: {} (ipfn synth uses it by default here); report: {}",
         trainer.iteration - first,
         start.elapsed().as_secs_f64(),
-        latest.display(),
+        trainer.run_dir().join("latest.ipfn").display(),
         trainer.run_dir().join("report.html").display()
     ));
     Ok(())
+}
+
+/// What is trained and how, where to watch it, and the structure floor it aims at.
+fn opening_lines(trainer: &Trainer, device: crate::device::DeviceChoice) -> Result<Vec<String>> {
+    let mut lines = vec![
+        start_line(trainer, device),
+        format!(
+            "watch it in a browser: ipfn view {}",
+            trainer.run_dir().display()
+        ),
+    ];
+    if let Some(floor) = trainer.structure_floor()? {
+        lines.push(floor_line(&floor));
+    }
+    Ok(lines)
 }
 
 /// What is trained, for how long, how, and where.
@@ -205,19 +192,4 @@ fn stopped(trainer: &Trainer) -> crate::Error {
         ),
         signal,
     )
-}
-
-/// A progress bar over `total` iterations starting at `position`, on a terminal when `show`.
-fn iteration_bar(show: bool, total: u64, position: u64) -> Option<indicatif::ProgressBar> {
-    (show && std::io::stderr().is_terminal()).then(|| {
-        let bar = indicatif::ProgressBar::new(total);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{bar:30} {pos}/{len} it  {per_sec}  eta {eta}  {msg}",
-            )
-            .expect("valid progress template"),
-        );
-        bar.set_position(position);
-        bar
-    })
 }

@@ -101,22 +101,16 @@ impl TilePainter {
         [height, width]: [usize; 2],
         band_pixels: usize,
     ) -> Result<()> {
-        let mut writers = outputs
-            .iter()
-            .map(|o| {
-                crate::io::ImageWriter::create(&o.path, o.format, width, height, o.channels.len())
-            })
-            .collect::<Result<Vec<_>>>()?;
-        crate::maps::for_each_band(
+        let bands = crate::maps::Bands {
             outputs,
-            self.net.shape.channels,
-            [height, width],
+            channels: self.net.shape.channels,
+            size: [height, width],
             band_pixels,
-            true,
+            clamp: true,
+        };
+        bands.write(
             |row, rows| self.render([origin[0] + row as i64, origin[1]], [rows, width]),
-            |i, map| writers[i].write_rows(&map),
             |_| {},
-        )?;
-        writers.into_iter().try_for_each(|w| w.finish())
+        )
     }
 }

@@ -10,7 +10,7 @@ use crate::device::DeviceChoice;
 use crate::error::Result;
 use crate::input_error;
 use crate::io::OutputFormat;
-use crate::maps::{MapFiles, MapOutput, preview};
+use crate::maps::{MapOutput, MapSetRequest, preview};
 
 /// The time budget of a fit that names neither a budget nor a step count.
 pub const DEFAULT_FIT_TIME: &str = "10m";
@@ -19,12 +19,7 @@ pub const DEFAULT_FIT_TIME: &str = "10m";
 #[derive(Debug, Clone, Default)]
 pub struct FitRequest {
     pub photo: Option<PathBuf>,
-    pub maps: Option<Vec<PathBuf>>,
-    pub normal_maps: Option<Vec<String>>,
-    pub resize_maps: bool,
-    /// The normal maps' convention: `Some(true)` DirectX's, `Some(false)` OpenGL's, `None` as
-    /// each map's name says (`NormalDX`, `nor_dx`: DirectX).
-    pub directx_normals: Option<bool>,
+    pub maps: Option<MapSetRequest>,
     pub mask: Option<PathBuf>,
     /// The tile's period in photo pixels `[rows, cols]`.
     pub period: Option<[usize; 2]>,
@@ -195,7 +190,7 @@ impl FitRequest {
 
     /// The photo, or the first map, that names the run.
     fn name(&self) -> &Path {
-        let first_map = self.maps.as_ref().and_then(|m| m.first());
+        let first_map = self.maps.as_ref().and_then(|m| m.files.first());
         self.photo
             .as_deref()
             .or(first_map.map(PathBuf::as_path))
@@ -210,13 +205,8 @@ impl FitRequest {
             period: self.period,
             ..FitConfig::default()
         };
-        if let Some(files) = &self.maps {
-            let mut files =
-                MapFiles::new(files.clone(), self.normal_maps.as_deref(), self.resize_maps)?;
-            if let Some(directx) = self.directx_normals {
-                files = files.with_directx(directx);
-            }
-            c.maps = Some(files);
+        if let Some(maps) = &self.maps {
+            c.maps = Some(maps.open()?);
         }
         macro_rules! set {
             ($($field:ident),*) => { $(if let Some(v) = &self.$field { c.$field = v.clone(); })* };

@@ -24,6 +24,44 @@ pub struct MapFiles {
     pub directx: Vec<bool>,
 }
 
+/// A map set as a request names it: the files (or one folder of them) and how to read them,
+/// one field per flag that `ipfn train` and `ipfn fit` share.
+#[derive(Debug, Clone, Default)]
+pub struct MapSetRequest {
+    /// The maps, or one folder of maps named by role.
+    pub files: Vec<PathBuf>,
+    /// Which maps are normal maps, by file stem; `None`: the maps named as normal maps.
+    pub normal_maps: Option<Vec<String>>,
+    /// Resample maps of another size to the first map's size instead of refusing them.
+    pub resize_maps: bool,
+    /// The normal maps' convention: `Some(true)` DirectX's, `Some(false)` OpenGL's, `None` as
+    /// each map's name says (`NormalDX`, `nor_dx`: DirectX).
+    pub directx_normals: Option<bool>,
+}
+
+impl MapSetRequest {
+    /// These files (or this folder), read as their names say.
+    pub fn files(files: Vec<PathBuf>) -> Self {
+        Self {
+            files,
+            ..Self::default()
+        }
+    }
+
+    /// The checked files ([`MapFiles::new`]), in the convention asked for.
+    pub fn open(&self) -> Result<MapFiles> {
+        let files = MapFiles::new(
+            self.files.clone(),
+            self.normal_maps.as_deref(),
+            self.resize_maps,
+        )?;
+        Ok(match self.directx_normals {
+            Some(directx) => files.with_directx(directx),
+            None => files,
+        })
+    }
+}
+
 /// Image files a folder of maps may hold.
 const MAP_EXTENSIONS: [&str; 4] = ["png", "jpg", "jpeg", "exr"];
 

@@ -11,7 +11,7 @@ mod role;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-pub use files::MapFiles;
+pub use files::{MapFiles, MapSetRequest};
 pub use role::MapRole;
 
 use serde::{Deserialize, Serialize};
@@ -230,46 +230,70 @@ pub fn check_outputs(outputs: &[MapOutput], width: usize, height: usize) -> Resu
     Ok(())
 }
 
-/// Renders a `[height, width]` image in row bands of about `band_pixels` pixels and hands each
-/// output its part of every band, in order: `render(row, rows)` gives a band's stacked pixels
-/// (`channels` values each), `sink(output, values)` takes one output's values (clamped to
-/// [-1, 1] when `clamp`, normal maps renormalised), and `progress(rows_done)` follows each band.
-/// Files and arrays are filled by this one loop, so they hold the same values.
-#[allow(clippy::too_many_arguments)]
-pub fn for_each_band(
-    outputs: &[MapOutput],
-    channels: usize,
-    [height, width]: [usize; 2],
-    band_pixels: usize,
-    clamp: bool,
-    render: impl Fn(usize, usize) -> Vec<f32>,
-    mut sink: impl FnMut(usize, Vec<f32>) -> Result<()>,
-    mut progress: impl FnMut(usize),
-) -> Result<()> {
-    let band_rows = (band_pixels / width.max(1)).clamp(1, height.max(1));
-    let mut row = 0;
-    while row < height {
-        let rows = band_rows.min(height - row);
-        let band = render(row, rows);
-        for (i, o) in outputs.iter().enumerate() {
-            let mut map: Vec<f32> = if o.channels == (0..channels) && !clamp {
-                band.clone()
-            } else {
-                band.chunks_exact(channels)
-                    .flat_map(|px| px[o.channels.clone()].iter())
-                    .map(|&v| if clamp { v.clamp(-1.0, 1.0) } else { v })
-                    .collect()
-            };
-            if o.normal {
-                renormalise(&mut map, o.channels.len());
+/// A `[height, width]` image painted in row bands of about `band_pixels` pixels, each band's
+/// stacked pixels (`channels` values each) split among `outputs`: clamped to [-1, 1] when
+/// `clamp`, normal maps renormalised, DirectX maps' green flipped. Files and arrays are filled
+/// by this one loop, so they hold the same values.
+pub struct Bands<'a> {
+    pub outputs: &'a [MapOutput],
+    pub channels: usize,
+    pub size: [usize; 2],
+    pub band_pixels: usize,
+    pub clamp: bool,
+}
+
+impl Bands<'_> {
+    /// Renders every band in order (`render(row, rows)` gives its stacked pixels) and hands
+    /// each output its part (`sink(output, values)`); `progress(rows_done)` follows each band.
+    pub fn for_each(
+        &self,
+        render: impl Fn(usize, usize) -> Vec<f32>,
+        mut sink: impl FnMut(usize, Vec<f32>) -> Result<()>,
+        mut progress: impl FnMut(usize),
+    ) -> Result<()> {
+        let [height, width] = self.size;
+        let channels = self.channels;
+        let band_rows = (self.band_pixels / width.max(1)).clamp(1, height.max(1));
+        let mut row = 0;
+        while row < height {
+            let rows = band_rows.min(height - row);
+            let band = render(row, rows);
+            for (i, o) in self.outputs.iter().enumerate() {
+                let mut map: Vec<f32> = if o.channels == (0..channels) && !self.clamp {
+                    band.clone()
+                } else {
+                    band.chunks_exact(channels)
+                        .flat_map(|px| px[o.channels.clone()].iter())
+                        .map(|&v| if self.clamp { v.clamp(-1.0, 1.0) } else { v })
+                        .collect()
+                };
+                if o.normal {
+                    renormalise(&mut map, o.channels.len());
+                }
+                if o.directx {
+                    flip_green(&mut map, o.channels.len());
+                }
+                sink(i, map)?;
             }
-            if o.directx {
-                flip_green(&mut map, o.channels.len());
-            }
-            sink(i, map)?;
+            row += rows;
+            progress(row);
         }
-        row += rows;
-        progress(row);
+        Ok(())
     }
-    Ok(())
+
+    /// Writes one file per output, each finished only once every band is written.
+    pub fn write(
+        &self,
+        render: impl Fn(usize, usize) -> Vec<f32>,
+        progress: impl FnMut(usize),
+    ) -> Result<()> {
+        let [height, width] = self.size;
+        let mut writers = (self.outputs.iter())
+            .map(|o| {
+                crate::io::ImageWriter::create(&o.path, o.format, width, height, o.channels.len())
+            })
+            .collect::<Result<Vec<_>>>()?;
+        self.for_each(render, |i, map| writers[i].write_rows(&map), progress)?;
+        writers.into_iter().try_for_each(|w| w.finish())
+    }
 }

@@ -4,7 +4,7 @@
 
 use std::ops::Range;
 
-use super::{Autocorrelation, SampleScores, Summary, for_each_sample, repeat_strength};
+use super::{Autocorrelation, SampleScores, Samples, Summary, repeat_strength};
 use super::{sifid_against, stem_gaussian, structure_floor, structure_lags};
 use crate::error::Result;
 use crate::exemplar::Exemplar;
@@ -30,18 +30,15 @@ fn pick(values: &[f32], channels: usize, range: &Range<usize>) -> Vec<f32> {
         .collect()
 }
 
-/// Scores `samples` samples (seeds `seed`, `seed + 1`, ...) of a map-set model at the
-/// exemplar's size against the exemplar (its maps stacked, values in [-1, 1]).
+/// Scores a map-set model's samples against the exemplar (its maps stacked, values in
+/// [-1, 1]).
 pub fn map_set_scores(
-    config: &crate::generator::GeneratorConfig,
-    weights: &crate::generator::GeneratorWeights,
+    samples: Samples<'_>,
     exemplar: &Exemplar,
     set: &MapSet,
-    samples: usize,
-    seed: u64,
-    device: crate::device::DeviceChoice,
 ) -> Result<MapSetScores> {
     let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
+    let config = samples.config;
     if c != config.channels || c != set.channels() {
         return Err(input_error!(
             "the exemplar has {c} channels but the model paints {}; evaluate a model with the maps it was trained on",
@@ -61,9 +58,10 @@ pub fn map_set_scores(
         .iter()
         .map(|(v, mc)| Autocorrelation::of(v, h, w, *mc, lags))
         .collect();
-    let (mut sifids, mut repeat) = (Vec::with_capacity(samples), [0.0; 2]);
-    let mut structures = vec![Vec::with_capacity(samples); ranges.len()];
-    for_each_sample(config, weights, exemplar, samples, seed, device, |sample| {
+    let n = samples.count;
+    let (mut sifids, mut repeat) = (Vec::with_capacity(n), [0.0; 2]);
+    let mut structures = vec![Vec::with_capacity(n); ranges.len()];
+    samples.for_each(exemplar, |sample| {
         for (i, r) in ranges.iter().enumerate() {
             let map = pick(sample, c, r);
             let ac = Autocorrelation::of(&map, h, w, r.len(), lags);
@@ -71,7 +69,7 @@ pub fn map_set_scores(
             if i == colour {
                 sifids.push(sifid_against(&real, &map, &colour_exemplar)?);
                 let s = repeat_strength(&map, h, w, r.len());
-                (0..2).for_each(|axis| repeat[axis] += s[axis] / samples as f64);
+                (0..2).for_each(|axis| repeat[axis] += s[axis] / n as f64);
             }
         }
         Ok(())

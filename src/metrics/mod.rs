@@ -95,15 +95,18 @@ pub struct ModelReport {
 
 /// Evaluates a model against its exemplar (values in [-1, 1], `[h, w, c]`).
 pub fn evaluate_model(
-    config: &crate::generator::GeneratorConfig,
-    weights: &crate::generator::GeneratorWeights,
+    samples: Samples<'_>,
     exemplar: &crate::exemplar::Exemplar,
-    samples: usize,
-    seed: u64,
-    device: crate::device::DeviceChoice,
 ) -> Result<ModelReport> {
     use crate::synth::Synth;
-    if samples == 0 {
+    let Samples {
+        config,
+        weights,
+        count,
+        seed,
+        device,
+    } = samples;
+    if count == 0 {
         return Err(input_error!("--samples 0: need at least one sample"));
     }
     let gray;
@@ -114,12 +117,12 @@ pub fn evaluate_model(
         exemplar
     };
     let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
-    let scores = sample_scores(config, weights, exemplar, samples, seed, device)?;
+    let scores = sample_scores(samples, exemplar)?;
     let exemplar_repeats = repeats(&exemplar.values, h, w, c);
     // One --tile sample per seed, each cut at another phase of the pattern (an offset within
     // the tile's period keeps it a tile), so the seam score does not measure one phase.
-    let mut tiles = Vec::with_capacity(samples);
-    for s in 0..samples as u64 {
+    let mut tiles = Vec::with_capacity(count);
+    for s in 0..count as u64 {
         let golden = |n: usize, k: u64| ((k as f64 * 0.618_033_988_75).fract() * n as f64) as i64;
         let painter = Synth::new(config.clone(), weights.clone())
             .seed(seed.wrapping_add(s))
@@ -166,28 +169,24 @@ pub struct SampleScores {
     pub repeat: [f64; 2],
 }
 
-/// Scores `samples` samples (seeds `seed`, `seed + 1`, ...) of the model at the exemplar's
-/// size against the exemplar (values in [-1, 1], `[h, w, c]`): SIFID, structure distance and
-/// repeat strength.
+/// Scores a model's samples against the exemplar (values in [-1, 1], `[h, w, c]`): SIFID,
+/// structure distance and repeat strength.
 pub fn sample_scores(
-    config: &crate::generator::GeneratorConfig,
-    weights: &crate::generator::GeneratorWeights,
+    samples: Samples<'_>,
     exemplar: &crate::exemplar::Exemplar,
-    samples: usize,
-    seed: u64,
-    device: crate::device::DeviceChoice,
 ) -> Result<SampleScores> {
     let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
-    let real = exemplar_features(config, exemplar)?;
+    let real = exemplar_features(samples.config, exemplar)?;
     let lags = structure_lags(h, w);
     let real_structure = Autocorrelation::of(&exemplar.values, h, w, c, lags);
-    let (mut sifids, mut structures) = (Vec::with_capacity(samples), Vec::with_capacity(samples));
+    let n = samples.count;
+    let (mut sifids, mut structures) = (Vec::with_capacity(n), Vec::with_capacity(n));
     let mut repeat = [0.0; 2];
-    for_each_sample(config, weights, exemplar, samples, seed, device, |sample| {
+    samples.for_each(exemplar, |sample| {
         sifids.push(sifid_against(&real, sample, exemplar)?);
         structures.push(real_structure.distance(&Autocorrelation::of(sample, h, w, c, lags)));
         let s = repeat_strength(sample, h, w, c);
-        (0..2).for_each(|axis| repeat[axis] += s[axis] / samples as f64);
+        (0..2).for_each(|axis| repeat[axis] += s[axis] / n as f64);
         Ok(())
     })?;
     Ok(SampleScores {
@@ -197,26 +196,51 @@ pub fn sample_scores(
     })
 }
 
-/// Paints `samples` samples (seeds `seed`, `seed + 1`, ...) of the model at the exemplar's size
-/// and hands each (`[h, w, c]`) to `each`, one at a time, so memory holds one sample.
-fn for_each_sample(
-    config: &crate::generator::GeneratorConfig,
-    weights: &crate::generator::GeneratorWeights,
-    exemplar: &crate::exemplar::Exemplar,
-    samples: usize,
-    seed: u64,
-    device: crate::device::DeviceChoice,
-    mut each: impl FnMut(&[f32]) -> Result<()>,
-) -> Result<()> {
-    use crate::synth::Synth;
-    for s in 0..samples as u64 {
-        let painter = Synth::new(config.clone(), weights.clone())
-            .seed(seed.wrapping_add(s))
-            .device(device)
-            .painter()?;
-        each(&painter.render(&[0, 0], &[exemplar.height, exemplar.width]))?;
+/// The samples of a model that are scored: `count` of them (seeds `seed`, `seed + 1`, ...),
+/// each painted on `device` at the exemplar's size.
+#[derive(Debug, Clone, Copy)]
+pub struct Samples<'a> {
+    pub config: &'a crate::generator::GeneratorConfig,
+    pub weights: &'a crate::generator::GeneratorWeights,
+    pub count: usize,
+    pub seed: u64,
+    pub device: crate::device::DeviceChoice,
+}
+
+impl<'a> Samples<'a> {
+    /// `count` samples from seed `seed`, painted on the fused CPU path.
+    pub fn cpu(
+        config: &'a crate::generator::GeneratorConfig,
+        weights: &'a crate::generator::GeneratorWeights,
+        count: usize,
+        seed: u64,
+    ) -> Self {
+        Self {
+            config,
+            weights,
+            count,
+            seed,
+            device: crate::device::DeviceChoice::Cpu,
+        }
     }
-    Ok(())
+
+    /// Paints each sample at the exemplar's size and hands it (`[h, w, c]`) to `each`, one at
+    /// a time, so memory holds one sample.
+    fn for_each(
+        &self,
+        exemplar: &crate::exemplar::Exemplar,
+        mut each: impl FnMut(&[f32]) -> Result<()>,
+    ) -> Result<()> {
+        use crate::synth::Synth;
+        for s in 0..self.count as u64 {
+            let painter = Synth::new(self.config.clone(), self.weights.clone())
+                .seed(self.seed.wrapping_add(s))
+                .device(self.device)
+                .painter()?;
+            each(&painter.render(&[0, 0], &[exemplar.height, exemplar.width]))?;
+        }
+        Ok(())
+    }
 }
 
 /// The Gaussian of the exemplar's stem features (values in [-1, 1], `[h, w, c]`), for a model

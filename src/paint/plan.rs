@@ -1,6 +1,6 @@
 //! A checked [`super::request::SynthRequest`]: what is painted, by which painter, into which
 //! files. [`SynthPlan::write`] paints into the files and [`SynthPlan::render`] into memory,
-//! through the same band loop ([`crate::maps::for_each_band`]), so both hold the same values.
+//! through the same band loop ([`crate::maps::Bands`]), so both hold the same values.
 
 use std::path::{Path, PathBuf};
 
@@ -323,7 +323,7 @@ fn paths(outputs: &[MapOutput]) -> String {
     written.join(", ")
 }
 
-/// The bands of [`crate::maps::for_each_band`] gathered into one array per output.
+/// The bands of [`crate::maps::Bands`] gathered into one array per output.
 fn collect_bands(
     outputs: &[MapOutput],
     names: &[String],
@@ -341,12 +341,14 @@ fn collect_bands(
             values: Vec::with_capacity(height * width * o.channels.len()),
         })
         .collect();
-    crate::maps::for_each_band(
+    let bands = crate::maps::Bands {
         outputs,
         channels,
-        [height, width],
-        DEFAULT_BAND_PIXELS,
+        size: [height, width],
+        band_pixels: DEFAULT_BAND_PIXELS,
         clamp,
+    };
+    bands.for_each(
         render,
         |i, values| {
             painted[i].values.extend(values);

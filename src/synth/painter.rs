@@ -215,23 +215,17 @@ impl Painter {
         band_pixels: usize,
         progress: impl FnMut(usize),
     ) -> Result<()> {
-        let mut writers = outputs
-            .iter()
-            .map(|o| {
-                crate::io::ImageWriter::create(&o.path, o.format, width, height, o.channels.len())
-            })
-            .collect::<Result<Vec<_>>>()?;
-        crate::maps::for_each_band(
+        let bands = crate::maps::Bands {
             outputs,
-            self.channels,
-            [height, width],
+            channels: self.channels,
+            size: [height, width],
             band_pixels,
-            false,
+            clamp: false,
+        };
+        bands.write(
             |row, rows| self.render(&[row as i64, 0], &[rows, width]),
-            |i, map| writers[i].write_rows(&map),
             progress,
-        )?;
-        writers.into_iter().try_for_each(|w| w.finish())
+        )
     }
 
     /// Renders the chunks of `writer`'s array that `shard` owns, each as one box, and writes

@@ -3,12 +3,12 @@
 
 use std::collections::BTreeMap;
 
-use burn::module::{Module, ModuleMapper, Param};
+use burn::module::{Module, ParamId};
 use burn::optim::GradientsParams;
 use burn::prelude::*;
 use rayon::prelude::*;
 
-use crate::checkpoint::Checkpoint;
+use crate::checkpoint::{Checkpoint, MapByPath, map_by_path};
 
 /// Adam's hyper-parameters and state for one module.
 #[derive(Debug, Clone)]
@@ -74,12 +74,7 @@ impl Adam {
     /// One update of every parameter of `module` that has a gradient in `grads`.
     pub fn step<M: Module>(&mut self, module: M, grads: GradientsParams) -> M {
         self.begin_step();
-        let mut mapper = AdamMapper {
-            adam: self,
-            grads,
-            path: Vec::new(),
-        };
-        module.map(&mut mapper)
+        map_by_path(module, &mut AdamMapper { adam: self, grads })
     }
 
     /// Counts one step: the step's parameters are then updated by [`Adam::update_host`].
@@ -178,54 +173,40 @@ impl Adam {
 struct AdamMapper<'a> {
     adam: &'a mut Adam,
     grads: GradientsParams,
-    path: Vec<String>,
 }
 
-impl ModuleMapper for AdamMapper<'_> {
-    fn enter_module(&mut self, name: &str, _: &str) {
-        self.path.push(name.to_string());
-    }
-
-    fn exit_module(&mut self, _: &str, _: &str) {
-        self.path.pop();
-    }
-
-    fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
-        let (id, tensor, mapper) = param.consume();
+impl MapByPath for AdamMapper<'_> {
+    fn map<const D: usize>(&mut self, path: &str, id: ParamId, tensor: Tensor<D>) -> Tensor<D> {
         let Some(grad) = self.grads.remove::<D>(id) else {
-            return Param::from_mapped_value(id, tensor, mapper);
+            return tensor;
         };
         let a = &mut *self.adam;
         let shape = grad.dims();
         let n: usize = shape.iter().product();
         let grad = grad.reshape([n]);
-        let path = self.path.join(".");
-        let (require_grad, device) = (tensor.is_require_grad(), tensor.device());
-        let mut updated = if grad.device() == Device::flex() {
+        let device = tensor.device();
+        if grad.device() == Device::flex() {
             let mut values = tensor
                 .inner()
                 .try_into_vec_as::<f32>()
                 .expect("parameters readable as f32");
-            a.update_host(&path, &mut values, &host(grad));
+            a.update_host(path, &mut values, &host(grad));
             Tensor::from_data(TensorData::new(values, shape), &device)
         } else {
             let t = a.steps as i32;
             let (bias1, bias2) = (1.0 - a.beta1.powi(t), 1.0 - a.beta2.powi(t));
-            let (m, v) = match a.moments.remove(&path) {
+            let (m, v) = match a.moments.remove(path) {
                 Some(Moments::Device(mv)) => *mv,
                 _ => (grad.zeros_like(), grad.zeros_like()),
             };
             let m = m * a.beta1 + grad.clone() * (1.0 - a.beta1);
             let v = v * a.beta2 + grad.powi_scalar(2) * (1.0 - a.beta2);
             let denom = v.clone().sqrt() / bias2.sqrt() + a.eps;
-            let update = (m.clone() / denom * (a.rate(&path) / bias1)).reshape(shape);
-            a.moments.insert(path, Moments::Device(Box::new((m, v))));
+            let update = (m.clone() / denom * (a.rate(path) / bias1)).reshape(shape);
+            a.moments
+                .insert(path.to_string(), Moments::Device(Box::new((m, v))));
             Tensor::from_inner(tensor.inner() - update)
-        };
-        if require_grad {
-            updated = updated.require_grad();
         }
-        Param::from_mapped_value(id, updated, mapper)
     }
 }
 

@@ -12,7 +12,7 @@ use super::{ExemplarSource, RunState, TrainConfig, TrainOverrides, Trainer, defa
 use crate::device::DeviceChoice;
 use crate::error::Result;
 use crate::input_error;
-use crate::maps::MapFiles;
+use crate::maps::MapSetRequest;
 
 /// What to train, one field per `ipfn train` flag.
 #[derive(Debug, Clone, Default)]
@@ -20,14 +20,7 @@ pub struct TrainRequest {
     /// The exemplar image (or volume). Not with `maps` or `resume`.
     pub exemplar: Option<PathBuf>,
     /// A material map set instead of one image.
-    pub maps: Option<Vec<PathBuf>>,
-    /// Which maps are normal maps, by file stem (default: names containing "normal").
-    pub normal_maps: Option<Vec<String>>,
-    /// Resample maps of another size to the first map's size.
-    pub resize_maps: bool,
-    /// The normal maps' convention: `Some(true)` DirectX's, `Some(false)` OpenGL's, `None` as
-    /// each map's name says (`NormalDX`, `nor_dx`: DirectX).
-    pub directx_normals: Option<bool>,
+    pub maps: Option<MapSetRequest>,
     /// A TOML config file (`--config`).
     pub config: Option<PathBuf>,
     /// Config keys as TOML text, applied over `config` (the Python package's keyword
@@ -118,14 +111,7 @@ impl TrainRequest {
                 "give either an exemplar image or --maps, not both"
             )),
             (Some(image), None) => Ok(image.into()),
-            (None, Some(files)) => {
-                let mut files =
-                    MapFiles::new(files.clone(), self.normal_maps.as_deref(), self.resize_maps)?;
-                if let Some(directx) = self.directx_normals {
-                    files = files.with_directx(directx);
-                }
-                Ok(files.into())
-            }
+            (None, Some(maps)) => Ok(maps.open()?.into()),
             (None, None) => Err(input_error!(
                 "no exemplar given: `ipfn train IMAGE` (or `--maps A.png,B.png,...`) starts a run, `ipfn train --resume runs/NAME` continues one"
             )),

@@ -5,11 +5,11 @@
 //! colour map and its structure distance the mean of its maps'.
 
 use super::{ExemplarSource, RunKind, Trainer};
-use crate::device::DeviceChoice;
 use crate::error::Result;
 use crate::exemplar::{Exemplar, read_exemplar};
 use crate::latent::derive_seed;
 use crate::maps::MapSet;
+use crate::metrics::Samples;
 
 /// Scoring reads at most this many pixels a side of the exemplar (its centre), so a checkpoint
 /// of a large photo stays well under a second.
@@ -86,30 +86,15 @@ impl Trainer {
         };
         let (config, weights) = self.model();
         let seed = derive_seed(self.config.seed, &[SCORE_STREAM]);
-        let samples = self.config.score_samples;
+        let samples = Samples::cpu(&config, &weights, self.config.score_samples, seed);
         let (scores, structure, maps) = match &set {
             None => {
-                let scores = crate::metrics::sample_scores(
-                    &config,
-                    &weights,
-                    &reference,
-                    samples,
-                    seed,
-                    DeviceChoice::Cpu,
-                )?;
+                let scores = crate::metrics::sample_scores(samples, &reference)?;
                 let structure = scores.structure.mean;
                 (scores, structure, Vec::new())
             }
             Some(set) => {
-                let scores = crate::metrics::map_set_scores(
-                    &config,
-                    &weights,
-                    &reference,
-                    set,
-                    samples,
-                    seed,
-                    DeviceChoice::Cpu,
-                )?;
+                let scores = crate::metrics::map_set_scores(samples, &reference, set)?;
                 let maps: Vec<f64> = scores.structure.iter().map(|s| s.mean).collect();
                 (scores.colour, mean(maps.iter().copied()), maps)
             }

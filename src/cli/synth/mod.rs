@@ -3,7 +3,6 @@
 
 mod zarr;
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -244,7 +243,11 @@ pub(super) fn synth(args: SynthArgs) -> Result<()> {
     };
     plan.header().into_iter().for_each(say);
     let start = Instant::now();
-    let bar = row_bar(!args.quiet && plan.pixels() >= 1 << 22, plan.rows());
+    let bar = crate::cli::progress_bar(
+        !args.quiet && plan.pixels() >= 1 << 22 && plan.rows() > 0,
+        plan.rows() as u64,
+        "{bar:40} {pos}/{len} rows  {elapsed} (eta {eta})",
+    );
     let wrote = plan.write(|rows| {
         if let Some(bar) = &bar {
             bar.set_position(rows as u64);
@@ -255,18 +258,4 @@ pub(super) fn synth(args: SynthArgs) -> Result<()> {
     }
     say(format!("{wrote} in {:.2} s", start.elapsed().as_secs_f64()));
     Ok(())
-}
-
-/// A progress bar over `rows` rows, on a terminal when `show`.
-fn row_bar(show: bool, rows: usize) -> Option<indicatif::ProgressBar> {
-    (show && rows > 0 && std::io::stderr().is_terminal()).then(|| {
-        let bar = indicatif::ProgressBar::new(rows as u64);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{bar:40} {pos}/{len} rows  {elapsed} (eta {eta})",
-            )
-            .expect("valid progress template"),
-        );
-        bar
-    })
 }

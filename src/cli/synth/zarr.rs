@@ -1,6 +1,5 @@
 //! `ipfn synth --out NAME.zarr`: a chunked Zarr v3 store, whole or one shard of it.
 
-use std::io::IsTerminal;
 use std::time::Instant;
 
 use super::SynthArgs;
@@ -40,7 +39,11 @@ pub(super) fn synth_zarr(
         ));
     }
     let start = Instant::now();
-    let bar = chunk_bar(!args.quiet);
+    let bar = crate::cli::progress_bar(
+        !args.quiet,
+        0,
+        "{bar:40} {pos}/{len} chunks  {elapsed} (eta {eta})",
+    );
     let report = painter.write_zarr(&writer, shard, |done, owned| {
         if let Some(bar) = &bar {
             bar.set_length(owned as u64);
@@ -60,20 +63,6 @@ pub(super) fn synth_zarr(
         start.elapsed().as_secs_f64()
     ));
     Ok(())
-}
-
-/// A progress bar over chunks, on a terminal when `show`.
-fn chunk_bar(show: bool) -> Option<indicatif::ProgressBar> {
-    (show && std::io::stderr().is_terminal()).then(|| {
-        let bar = indicatif::ProgressBar::new(0);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{bar:40} {pos}/{len} chunks  {elapsed} (eta {eta})",
-            )
-            .expect("valid progress template"),
-        );
-        bar
-    })
 }
 
 /// What the store records of the render: the model, the synth settings, what the values mean,
