@@ -249,8 +249,8 @@ pub trait MapByPath {
     ) -> burn::tensor::Tensor<D>;
 }
 
-/// Applies `f` to every float parameter of `module`, keeping parameter identities and whether
-/// each requires gradients.
+/// Applies `f` to every float parameter of `module`, keeping parameter identities and
+/// restoring `require_grad` on the parameters that had it.
 pub fn map_by_path<M: burn::module::Module, F: MapByPath>(module: M, f: &mut F) -> M {
     use burn::module::Param;
     use burn::tensor::Tensor;

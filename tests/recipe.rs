@@ -139,7 +139,8 @@ fn a_time_budget_plans_the_run_scores_it_and_keeps_the_best() {
 
 /// A periodic photo whose cells are wider than a crop trains at the scale at which a crop holds
 /// one (the shipped honeycomb: cells 59.5 px across, crops of 32 px, scale 0.5), and still
-/// paints at its own scale; a run that sets its scale keeps it.
+/// paints at its own scale; a run that sets its scale keeps it, and the CPU's crop, and is told
+/// when that crop holds less than one cell.
 #[test]
 fn a_crop_holds_a_whole_cell_of_a_periodic_photo() {
     let dir = tempfile::tempdir().unwrap();
@@ -174,6 +175,17 @@ fn a_crop_holds_a_whole_cell_of_a_periodic_photo() {
     let (err, config) = train("runs/own", &["--resize", "1"]);
     assert!(!err.contains("working scale"), "{err}");
     assert_eq!(config.resize, 1.0);
+    // The scale alone leaves the CPU's crop: 128-px crops would train at a tenth of the speed.
+    assert_eq!(config.crop, 32, "{err}");
+    assert!(err.contains("crop as configs/cpu.toml"), "{err}");
+    // ... and says that a 32-px crop now holds less than one 59.5-px cell, with the way out.
+    assert!(
+        err.contains("a 32 px crop holds less than one period (60 px at --resize 1)"),
+        "{err}"
+    );
+    assert!(err.contains("--crop 64 holds one"), "{err}");
+    let (err, _) = train("runs/half", &["--resize", "0.5"]);
+    assert!(!err.contains("less than one period"), "{err}");
 }
 
 #[test]

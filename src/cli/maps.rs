@@ -8,11 +8,12 @@ use crate::maps::MapSetRequest;
 
 #[derive(Debug, Args)]
 pub struct MapSetArgs {
-    /// A material map set instead of one image, learned by one network so the maps stay
-    /// aligned: the files (albedo.png,normal.png,roughness.png,height.png), or a folder of
-    /// maps named by role (color, normal, height, roughness, ao, metalness and their usual
-    /// spellings), each read and written back at its own bit depth (a gray map stored as RGB
-    /// is read as gray, an opaque alpha dropped).
+    /// A material map set instead of one image, trained or fitted as one so the maps stay
+    /// aligned (synth writes one file per map): the files
+    /// (albedo.png,normal.png,roughness.png,height.png), or a folder of maps named by role
+    /// (color, normal, height, roughness, ao, metalness and their usual spellings), each read
+    /// and written back at its own bit depth (a gray map stored as RGB is read as gray, an
+    /// opaque alpha dropped).
     #[arg(long, value_delimiter = ',', value_name = "FILES")]
     pub maps: Option<Vec<PathBuf>>,
     /// Which maps are normal maps (renormalised to unit length on output), by file stem.

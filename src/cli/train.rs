@@ -73,7 +73,7 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
     } = args.request().open()?;
     lines.into_iter().for_each(say);
     if !args.quiet {
-        opening_lines(&trainer, device)?.into_iter().for_each(say);
+        opening_lines(&trainer, device, &say)?;
     }
     crate::stop::install(crate::stop::OnSignal::FinishStep);
     let (start, first) = (Instant::now(), trainer.iteration);
@@ -103,19 +103,22 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
     Ok(())
 }
 
-/// What is trained and how, where to watch it, and the structure floor it aims at.
-fn opening_lines(trainer: &Trainer, device: crate::device::DeviceChoice) -> Result<Vec<String>> {
-    let mut lines = vec![
-        start_line(trainer, device),
-        format!(
-            "watch it in a browser: ipfn view {}",
-            trainer.run_dir().display()
-        ),
-    ];
+/// What is trained and how, where to watch it, and the structure floor it aims at; the first
+/// two said before the floor is computed, which takes a moment on a large exemplar.
+fn opening_lines(
+    trainer: &Trainer,
+    device: crate::device::DeviceChoice,
+    say: &dyn Fn(String),
+) -> Result<()> {
+    say(start_line(trainer, device));
+    say(format!(
+        "watch it in a browser: ipfn view {}",
+        trainer.run_dir().display()
+    ));
     if let Some(floor) = trainer.structure_floor()? {
-        lines.push(floor_line(&floor));
+        say(floor_line(&floor));
     }
-    Ok(lines)
+    Ok(())
 }
 
 /// What is trained, for how long, how, and where.

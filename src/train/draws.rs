@@ -2,9 +2,10 @@
 //! continues bit for bit: the purposes ([`stream`]), uniform draws ([`uniform`]) and the
 //! networks' initial weights ([`initialise`]).
 
-use burn::module::{Module, ModuleMapper, Param};
+use burn::module::{Module, ParamId};
 use burn::prelude::*;
 
+use crate::checkpoint::{MapByPath, map_by_path};
 use crate::latent::{derive_seed, mix64};
 
 /// Purposes of random draws, so no two share a stream.
@@ -41,22 +42,14 @@ pub(crate) fn initialise<M: Module>(module: M, seed: u64, stream: u64) -> M {
     struct Init {
         seed: u64,
         stream: u64,
-        path: Vec<String>,
         fan_in: usize,
     }
-    impl ModuleMapper for Init {
-        fn enter_module(&mut self, name: &str, _: &str) {
-            self.path.push(name.to_string());
-        }
-        fn exit_module(&mut self, _: &str, _: &str) {
-            self.path.pop();
-        }
-        fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
-            let name = self.path.last().cloned().unwrap_or_default();
+    impl MapByPath for Init {
+        fn map<const D: usize>(&mut self, path: &str, _: ParamId, tensor: Tensor<D>) -> Tensor<D> {
+            let name = path.rsplit('.').next().unwrap_or_default();
             if name == "k" {
-                return param;
+                return tensor;
             }
-            let (id, tensor, mapper) = param.consume();
             let shape = tensor.dims();
             if name == "weight" {
                 // Linear weights are [in, out]; convolution weights [out, in, kh, kw].
@@ -67,26 +60,20 @@ pub(crate) fn initialise<M: Module>(module: M, seed: u64, stream: u64) -> M {
                 };
             }
             let bound = 1.0 / (self.fan_in.max(1) as f32).sqrt();
-            let key = self.path.iter().fold(self.seed, |h, p| {
+            let key = path.split('.').fold(self.seed, |h, p| {
                 mix64(h ^ p.bytes().fold(0u64, |a, b| mix64(a ^ b as u64)))
             });
             let n: usize = shape.iter().product();
             let values: Vec<f32> = (0..n as u64)
                 .map(|i| (uniform(key, &[self.stream, i]) * 2.0 - 1.0) * bound)
                 .collect();
-            let fresh = Tensor::<D>::from_data(TensorData::new(values, shape), &tensor.device());
-            let fresh = if tensor.is_require_grad() {
-                fresh.require_grad()
-            } else {
-                fresh
-            };
-            Param::from_mapped_value(id, fresh, mapper)
+            Tensor::<D>::from_data(TensorData::new(values, shape), &tensor.device())
         }
     }
-    module.map(&mut Init {
+    let mut init = Init {
         seed,
         stream,
-        path: Vec::new(),
         fan_in: 1,
-    })
+    };
+    map_by_path(module, &mut init)
 }

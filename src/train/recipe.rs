@@ -157,6 +157,7 @@ pub fn apply(
             config.crop
         ));
     }
+    lines.extend(crop_short_of_a_period(measured, config, explicit, plain));
     if !explicit.contains("gray") && measured.gray {
         config.gray = true;
         lines.push("every pixel's channels are equal: trained as gray (1 channel)".into());
@@ -169,6 +170,33 @@ pub fn apply(
         ));
     }
     lines
+}
+
+/// A warning where the run set the scale and left the crop, and the crop then holds less than
+/// one period of a periodic plain image: the cells' shape cannot be learned, as at the
+/// exemplar's own scale with a crop too small.
+fn crop_short_of_a_period(
+    measured: &Measured,
+    config: &TrainConfig,
+    explicit: &BTreeSet<String>,
+    plain: bool,
+) -> Option<String> {
+    if !plain || !explicit.contains("resize") || explicit.contains("crop") {
+        return None;
+    }
+    let period = (0..2)
+        .filter_map(|axis| measured.period(axis))
+        .reduce(f64::min)?
+        * config.resize;
+    // Crops are multiples of 16: the way out names the first that holds the period.
+    (period > config.crop as f64).then(|| {
+        format!(
+            "a {} px crop holds less than one period ({period:.0} px at --resize {}): the cells' shape may not be learned; --crop {} holds one (slower), or leave --resize out and the recipe picks a scale",
+            config.crop,
+            config.resize,
+            (period / 16.0).ceil() as usize * 16
+        )
+    })
 }
 
 /// The time budget of a run that names neither a budget nor an iteration count.
@@ -210,14 +238,16 @@ pub fn settle(
 ) -> crate::Result<Vec<String>> {
     config.time_budget()?;
     let mut lines = Vec::new();
-    // The preset's scale and crop go together, and were tuned on single images: map sets take
-    // them too (measured on their colour map), volumes and a run that sets either keep their
-    // own.
+    // The preset's scale and crop were tuned on single images: map sets take them too
+    // (measured on their colour map), volumes keep their own. A run that sets the scale keeps
+    // the preset's crop (a CPU trains 128-px crops at a tenth of the speed); one that sets the
+    // crop keeps its own scale, since it sized the crop for the exemplar as it is.
     let flat = matches!(
         source,
         super::ExemplarSource::Image(_) | super::ExemplarSource::Maps(_)
     );
-    let scale_and_crop = flat && !explicit.contains("resize") && !explicit.contains("crop");
+    let preset_crop = flat;
+    let preset_scale = flat && !explicit.contains("crop");
     // K's own rate was measured on plain 2D images: solid textures, guided runs, map sets and
     // volumes keep K at the weights' rate.
     let plain_image = matches!(source, super::ExemplarSource::Image(_))
@@ -226,7 +256,11 @@ pub fn settle(
     let free: Vec<&str> = CPU_KEYS
         .into_iter()
         .filter(|k| !explicit.contains(*k))
-        .filter(|k| scale_and_crop || !["resize", "crop"].contains(k))
+        .filter(|k| match *k {
+            "crop" => preset_crop,
+            "resize" => preset_scale,
+            _ => true,
+        })
         .filter(|k| plain_image || *k != "k_lr")
         .collect();
     if !on_gpu && !free.is_empty() {

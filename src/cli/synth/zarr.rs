@@ -39,20 +39,7 @@ pub(super) fn synth_zarr(
         ));
     }
     let start = Instant::now();
-    let bar = crate::cli::progress_bar(
-        !args.quiet,
-        0,
-        "{bar:40} {pos}/{len} chunks  {elapsed} (eta {eta})",
-    );
-    let report = painter.write_zarr(&writer, shard, |done, owned| {
-        if let Some(bar) = &bar {
-            bar.set_length(owned as u64);
-            bar.set_position(done as u64);
-        }
-    })?;
-    if let Some(bar) = bar {
-        bar.finish_and_clear();
-    }
+    let report = write_with_progress(&painter, &writer, shard, !args.quiet)?;
     say(format!(
         "wrote {} ({}): {}, seed {}, {:?}, in {:.2} s",
         out.display(),
@@ -63,6 +50,30 @@ pub(super) fn synth_zarr(
         start.elapsed().as_secs_f64()
     ));
     Ok(())
+}
+
+/// Paints the shard's chunks into `writer`, with a progress bar over them when `show`.
+fn write_with_progress(
+    painter: &crate::synth::Painter,
+    writer: &ZarrWriter,
+    shard: crate::io::shard::Shard,
+    show: bool,
+) -> Result<crate::io::zarr::ZarrReport> {
+    let bar = crate::cli::progress_bar(
+        show,
+        0,
+        "{bar:40} {pos}/{len} chunks  {elapsed} (eta {eta})",
+    );
+    let report = painter.write_zarr(writer, shard, |done, owned| {
+        if let Some(bar) = &bar {
+            bar.set_length(owned as u64);
+            bar.set_position(done as u64);
+        }
+    })?;
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    Ok(report)
 }
 
 /// What the store records of the render: the model, the synth settings, what the values mean,
