@@ -15,7 +15,9 @@ trap 'rm -rf "$work"' EXIT
 
 nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader
 
-# Warm the first process's compilation and autotune caches outside the timed runs.
+# Warm the driver's shader caches outside the timed runs. (Autotune results are no longer kept
+# on disk since burn's default features were dropped: each process tunes again, so a timed
+# process that autotunes pays for it.)
 for d in ${devices//,/ }; do
   "$ipfn" synth --size 256 --device "$d" -o "$work/warm.png" >/dev/null 2>&1 ||
     echo "warm-up on $d failed"

@@ -3,8 +3,6 @@
 //! other test allocates on the device while this one reads the device's memory report.
 #![cfg(feature = "wgpu")]
 
-mod common;
-
 use ipfn::device::DeviceChoice;
 use ipfn::generator::kernel::KernelGenerator;
 use ipfn::generator::{GeneratorConfig, GeneratorWeights};

@@ -93,14 +93,18 @@ pub(super) fn train(args: TrainArgs) -> Result<()> {
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
-    say(format!(
-        "trained {} iterations in {:.1} s; model: {} (ipfn synth uses it by default here); report: {}",
-        trainer.iteration - first,
+    say(closing_line(&trainer, trainer.iteration - first, start));
+    Ok(())
+}
+
+/// How much was trained, and where the model and the report are.
+fn closing_line(trainer: &Trainer, iterations: u64, start: Instant) -> String {
+    format!(
+        "trained {iterations} iterations in {:.1} s; model: {} (ipfn synth uses it by default here); report: {}",
         start.elapsed().as_secs_f64(),
         trainer.run_dir().join("latest.ipfn").display(),
         trainer.run_dir().join("report.html").display()
-    ));
-    Ok(())
+    )
 }
 
 /// What is trained and how, where to watch it, and the structure floor it aims at; the first

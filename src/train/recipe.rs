@@ -8,6 +8,8 @@
 //! - a periodic plain image trains at the working scale at which a fine crop holds one whole
 //!   period of its shorter clear period ([`cell_scale`]): a crop smaller than one cell cannot
 //!   learn the cell's shape, and the generator then paints a grid of crop-sized blobs;
+//!   (a run that sets its own scale and leaves the crop is told when the crop holds less than
+//!   one period, and which `--crop` holds one);
 //! - a plain image with no clear period on either axis trains with the diversity hinge
 //!   ([`NO_PERIOD_DIVERSITY`], [`super::diversity`]), which keeps its samples from repeating as
 //!   a grid. A periodic exemplar keeps the paper's loss: its crops and their twins at the same
@@ -191,7 +193,7 @@ fn crop_short_of_a_period(
     // Crops are multiples of 16: the way out names the first that holds the period.
     (period > config.crop as f64).then(|| {
         format!(
-            "a {} px crop holds less than one period ({period:.0} px at --resize {}): the cells' shape may not be learned; --crop {} holds one (slower), or leave --resize out and the recipe picks a scale",
+            "a {} px crop holds less than one period ({period:.1} px at --resize {}): the cells' shape may not be learned; --crop {} holds one (slower), or leave --resize out and the recipe picks a scale",
             config.crop,
             config.resize,
             (period / 16.0).ceil() as usize * 16
@@ -378,8 +380,15 @@ mod tests {
         );
         let explicit = BTreeSet::from(["resize".to_string()]);
         config.resize = 1.0;
-        apply(&with(104.0, 59.5), &mut config, &explicit, true);
+        let lines = apply(&with(104.0, 59.5), &mut config, &explicit, true);
         assert_eq!(config.resize, 1.0);
+        // A scale of the run's own that leaves the crop short of a cell is named, with the
+        // crop (a multiple of 16) that holds one.
+        let warning = "a 32 px crop holds less than one period (59.5 px at --resize 1): the cells' shape may not be learned; --crop 64 holds one (slower), or leave --resize out and the recipe picks a scale";
+        assert!(lines.iter().any(|l| l == warning), "{lines:?}");
+        config.resize = 0.5;
+        let lines = apply(&with(104.0, 59.5), &mut config, &explicit, true);
+        assert!(!lines.iter().any(|l| l.contains("less than one period")));
     }
 
     #[test]

@@ -1,10 +1,8 @@
 //! The `ipfn` binary end to end: outputs on real files, and one-line errors with exit code 2.
 
-mod common;
-
 use std::path::Path;
 
-use common::{assert_error, data, ipfn, stderr};
+use crate::common::{assert_error, data, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::generator::GeneratorWeights;
 use ipfn::io::read_npy;

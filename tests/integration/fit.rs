@@ -2,12 +2,12 @@
 //! periodic at any size on every device; masks are filled in; `--resume` continues bit for bit;
 //! bad input gets one-line errors.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use common::{assert_error, ipfn, stderr};
+use crate::common::{assert_error, ipfn, stderr};
 use ipfn::device::DeviceChoice;
 use ipfn::fit::{FitConfig, FitEnd, Fitter};
 

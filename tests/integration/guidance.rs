@@ -1,9 +1,7 @@
 //! Directional guidance (conditional IPFN) end to end: train with `--guide x` on stripes that
 //! brighten from left to right, then paint with a ramp the exemplar never had.
 
-mod common;
-
-use common::{assert_error, ipfn, max_abs_diff, stderr};
+use crate::common::{assert_error, ipfn, max_abs_diff, stderr};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::condition::Guide;
 use ipfn::device::DeviceChoice;
@@ -11,7 +9,7 @@ use ipfn::generator::GeneratorWeights;
 use ipfn::io::read_npy;
 use ipfn::synth::Synth;
 
-use common::SMALL_CONFIG as CONFIG;
+use crate::common::SMALL_CONFIG as CONFIG;
 
 /// Mean of the first channel over the left and the right third of `[h, w, c]` values.
 fn left_right(values: &[f32], w: usize, c: usize) -> (f64, f64) {

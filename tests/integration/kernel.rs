@@ -4,9 +4,7 @@
 //! launch boundaries.
 #![cfg(feature = "wgpu")]
 
-mod common;
-
-use common::{honeycomb, max_abs_diff};
+use crate::common::{honeycomb, max_abs_diff};
 use ipfn::device::DeviceChoice;
 use ipfn::generator::fused::{FusedGenerator, Scratch};
 use ipfn::generator::kernel::KernelGenerator;

@@ -2,12 +2,12 @@
 //! height), synthesize one file per map, and check alignment, precision, tiling, normal length,
 //! and that the painted normals follow the painted height better than an untrained model's.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 
+use crate::common::{assert_error, ipfn, stderr};
 use burn::prelude::*;
-use common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::generator::GeneratorWeights;
 use ipfn::io::read_npy;
@@ -15,7 +15,7 @@ use ipfn::maps::MapSet;
 use ipfn::synth::Synth;
 use ipfn::train::{TrainConfig, Trainer};
 
-use common::SMALL_CONFIG as CONFIG;
+use crate::common::SMALL_CONFIG as CONFIG;
 
 const MAPS: &str = "mat/albedo.png,mat/normal.png,mat/roughness.png,mat/height.png";
 

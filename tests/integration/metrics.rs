@@ -4,12 +4,10 @@
 //! tests/data/sifid/expected.json was made by tools/inception-stem/{reference.js,reference.py};
 //! see tools/inception-stem/README.md to rerun them. Never edit the expected values to pass.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{assert_error, ipfn, stderr};
+use crate::common::{assert_error, ipfn, stderr};
 use ipfn::metrics::{self, Gaussian, InceptionStem, frechet_distance};
 
 fn root() -> PathBuf {

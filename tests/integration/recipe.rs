@@ -3,9 +3,9 @@
 //! as gray; a time budget plans the run's length; the run scores its checkpoints (SIFID) and
 //! keeps the best as `best.ipfn`, which synth prefers.
 
-mod common;
+use crate::common;
 
-use common::{ipfn, stderr};
+use crate::common::{ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::generator::GeneratorWeights;
 use ipfn::train::TrainConfig;
@@ -180,7 +180,7 @@ fn a_crop_holds_a_whole_cell_of_a_periodic_photo() {
     assert!(err.contains("crop as configs/cpu.toml"), "{err}");
     // ... and says that a 32-px crop now holds less than one 59.5-px cell, with the way out.
     assert!(
-        err.contains("a 32 px crop holds less than one period (60 px at --resize 1)"),
+        err.contains("a 32 px crop holds less than one period (59.5 px at --resize 1)"),
         "{err}"
     );
     assert!(err.contains("--crop 64 holds one"), "{err}");

@@ -4,10 +4,8 @@
 //! Never loosen these bounds or regenerate the expected arrays to make a change pass: they come
 //! from the authors' code, not ours.
 
-mod common;
-
+use crate::common::{data, honeycomb, max_abs_diff};
 use burn::prelude::*;
-use common::{data, honeycomb, max_abs_diff};
 use ipfn::device::DeviceChoice;
 use ipfn::generator::Generator;
 use ipfn::generator::fused::{FusedGenerator, Scratch};

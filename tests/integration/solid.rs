@@ -2,9 +2,7 @@
 //! 3D generator whose axis-aligned slices look like the exemplar; `synth --slice` writes those
 //! slices and `synth --solid --size WxHxD` the volume.
 
-mod common;
-
-use common::{assert_error, ipfn, stderr};
+use crate::common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::exemplar::read_exemplar;
 use ipfn::generator::GeneratorWeights;
@@ -12,7 +10,7 @@ use ipfn::io::read_npy;
 use ipfn::metrics::{sifid, to_unit_rgb};
 use ipfn::synth::Synth;
 
-use common::SMALL_CONFIG as CONFIG;
+use crate::common::SMALL_CONFIG as CONFIG;
 
 const SIDE: usize = 96;
 

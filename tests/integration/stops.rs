@@ -2,13 +2,13 @@
 //! a stopped `synth` leaves no temporary file, one process trains a run folder at a time, and a
 //! damaged `latest.ipfn` offers `previous.ipfn`.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
-use common::{assert_error, ipfn, stderr};
+use crate::common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 
 fn metrics_rows(run: &Path) -> usize {

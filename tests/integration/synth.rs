@@ -1,8 +1,6 @@
 //! Synthesis properties: chunking invariance, tiling, determinism, and agreement across devices.
 
-mod common;
-
-use common::{honeycomb, max_abs_diff};
+use crate::common::{honeycomb, max_abs_diff};
 use ipfn::device::DeviceChoice;
 use ipfn::io::{OutputFormat, read_npy};
 use ipfn::synth::{Painter, Synth};

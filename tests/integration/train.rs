@@ -1,14 +1,14 @@
 //! Training end to end: it learns, it resumes bit for bit, it survives Ctrl-C and kill -9,
 //! and it refuses bad input with one line.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
+use crate::common::{assert_error, ipfn, stderr};
 use burn::prelude::*;
-use common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::train::{Scale, TrainConfig, Trainer};
 

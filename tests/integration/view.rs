@@ -1,17 +1,17 @@
 //! `ipfn view` over HTTP: tiles equal `ipfn synth`, bad requests get 400, runs are followed
 //! live and reported, exports go through synth, Ctrl-C leaves nothing behind, load does not
-//! stall the page. `tests/view_browser.rs` opens the page in headless chromium.
+//! stall the page. `tests/integration/view_browser.rs` opens the page in headless chromium.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 use std::process::Command;
 use std::time::Duration;
 
-use common::view::{
+use crate::common::view::{
     Viewer, agent, assert_same, assert_tile_is, fetch, pixels, train_quietly, view,
 };
-use common::{TINY, ipfn, stderr, tiny_run_folder};
+use crate::common::{TINY, ipfn, stderr, tiny_run_folder};
 
 #[test]
 fn tiles_hold_exactly_the_pixels_of_ipfn_synth() {

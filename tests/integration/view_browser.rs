@@ -2,13 +2,13 @@
 //! plane shows exactly what `ipfn synth` paints, pans, zooms and lives in the URL; a run folder's
 //! page and its `report.html` draw their plots and previews.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;
 
-use common::tiny_run_folder;
-use common::view::{assert_same, pixels, synth, train_quietly, view};
+use crate::common::tiny_run_folder;
+use crate::common::view::{assert_same, pixels, synth, train_quietly, view};
 
 /// Headless chromium: Debian's `chromium` and tests/browser's playwright-core (`npm ci`), as
 /// `.ci/run` installs them. Skipped (with a message) only outside CI when they are missing.

@@ -1,9 +1,9 @@
 //! Volumes (groundwork for 3D): signed-distance volumes in, and chunked volume synthesis with a
 //! 3D generator out, identical in any chunking.
 
-mod common;
+use crate::common;
 
-use common::{assert_error, ipfn, stderr};
+use crate::common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::exemplar::read_sdf_volume;
 use ipfn::generator::{GeneratorConfig, GeneratorWeights};

@@ -2,9 +2,9 @@
 //! against the 3D critic on cubic crops, resumes exactly, and its volumes take on the
 //! exemplar's structure.
 
-mod common;
+use crate::common;
 
-use common::{assert_error, ipfn, stderr};
+use crate::common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::exemplar::read_sdf_volume;
 use ipfn::generator::GeneratorWeights;

@@ -1,8 +1,6 @@
 //! `ipfn voxelize`: meshes (.obj, .ply) to signed-distance volumes.
 
-mod common;
-
-use common::{assert_error, ipfn, stderr};
+use crate::common::{assert_error, ipfn, stderr};
 use ipfn::io::read_npy;
 use ipfn::mesh::{Mesh, write_mesh};
 

@@ -2,13 +2,13 @@
 //! exactly the values of a single render, a killed worker's rerun completes it, GNU parallel
 //! runs the README's line as written, and zarr-python reads what we wrote.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
 
-use common::{assert_error, ipfn, stderr};
+use crate::common::{assert_error, ipfn, stderr};
 use ipfn::checkpoint::Checkpoint;
 use ipfn::generator::{GeneratorConfig, GeneratorWeights};
 use ipfn::io::read_npy;

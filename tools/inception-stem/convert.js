@@ -9,7 +9,7 @@
 // each followed by batch_normalization_1..5 and ReLU, with max_pooling2d_1 after conv2d_3.
 // Weights in the package are uint8 with a per-tensor min and scale; they are dequantized exactly
 // as tfjs does (q * scale + min, rounded to f32). Kernels go from Keras HWIO to OIHW.
-// The output is byte-for-byte deterministic; tests/metrics.rs re-derives it and compares.
+// The output is byte-for-byte deterministic; tests/integration/metrics.rs re-derives it and compares.
 'use strict';
 const fs = require('fs');
 const os = require('os');
