@@ -56,6 +56,12 @@ impl Measured {
             .filter(|r| r.strength >= CLEAR_REPEAT)
             .map(|r| r.period)
     }
+
+    /// The shorter of the two axes' clear periods, if either axis has one: the cell a crop
+    /// must hold.
+    pub fn shortest_period(&self) -> Option<f64> {
+        (0..2).filter_map(|axis| self.period(axis)).reduce(f64::min)
+    }
 }
 
 /// Measures `exemplar` (at most 512 pixels a side are read for the period: a larger exemplar's
@@ -107,9 +113,7 @@ pub const MIN_CELL_SCALE: f64 = 0.25;
 /// smaller than one cell cannot learn the cell's shape, and the generator then paints a grid
 /// of crop-sized blobs.
 pub fn cell_scale(measured: &Measured, crop: usize) -> Option<f64> {
-    let period = (0..2)
-        .filter_map(|axis| measured.period(axis))
-        .reduce(f64::min)?;
+    let period = measured.shortest_period()?;
     let scale = (crop as f64 / period * 20.0).floor() / 20.0;
     (scale < 1.0).then_some(scale.max(MIN_CELL_SCALE))
 }
@@ -186,10 +190,7 @@ fn crop_short_of_a_period(
     if !plain || !explicit.contains("resize") || explicit.contains("crop") {
         return None;
     }
-    let period = (0..2)
-        .filter_map(|axis| measured.period(axis))
-        .reduce(f64::min)?
-        * config.resize;
+    let period = measured.shortest_period()? * config.resize;
     // Crops are multiples of 16: the way out names the first that holds the period.
     (period > config.crop as f64).then(|| {
         format!(
