@@ -200,13 +200,8 @@ pub fn repeats(
     width: usize,
     channels: usize,
 ) -> [Option<Repeat>; 2] {
-    // Luminance-like mean over channels, with the mean removed.
-    let gray: Vec<f64> = values
-        .chunks_exact(channels)
-        .map(|p| p.iter().map(|&v| v as f64).sum::<f64>() / channels as f64)
-        .collect();
-    let mean = gray.iter().sum::<f64>() / gray.len().max(1) as f64;
-    let g = |y: usize, x: usize| gray[y * width + x] - mean;
+    let gray = centred_luminance(values, channels);
+    let g = |y: usize, x: usize| gray[y * width + x];
     // Normalised autocorrelation along one axis, averaged over the other.
     let along = |len: usize, other: usize, pick: &dyn Fn(usize, usize) -> f64| -> Option<Repeat> {
         let max_lag = len / 2;
@@ -256,6 +251,43 @@ pub fn repeats(
     ]
 }
 
+/// The mean over channels of each pixel, with the image's mean removed.
+fn centred_luminance(values: &[f32], channels: usize) -> Vec<f64> {
+    let gray: Vec<f64> = values
+        .chunks_exact(channels)
+        .map(|p| p.iter().map(|&v| v as f64).sum::<f64>() / channels as f64)
+        .collect();
+    let mean = gray.iter().sum::<f64>() / gray.len().max(1) as f64;
+    gray.into_iter().map(|v| v - mean).collect()
+}
+
+/// The autocorrelation of an image `[height, width, channels]`'s luminance at the lag
+/// `[down, across]` (pixels), over its value at lag 0: each product averaged over the pixels
+/// the shifted image still overlaps. 0 where the lag leaves no overlap or the image is flat.
+pub fn autocorrelation_at(
+    values: &[f32],
+    [height, width, channels]: [usize; 3],
+    [down, across]: [usize; 2],
+) -> f64 {
+    if down >= height || across >= width {
+        return 0.0;
+    }
+    let gray = centred_luminance(values, channels);
+    let mean_product = |dy: usize, dx: usize| {
+        let mut sum = 0.0;
+        for y in 0..height - dy {
+            let (a, b) = (&gray[y * width..], &gray[(y + dy) * width + dx..]);
+            sum += (0..width - dx).map(|x| a[x] * b[x]).sum::<f64>();
+        }
+        sum / ((height - dy) * (width - dx)) as f64
+    };
+    let zero = mean_product(0, 0);
+    if zero <= 0.0 {
+        return 0.0;
+    }
+    mean_product(down, across) / zero
+}
+
 /// The dominant period (pixels) along rows and columns: the lag of [`repeats`], however weak.
 pub fn dominant_period(
     values: &[f32],
@@ -264,4 +296,24 @@ pub fn dominant_period(
     channels: usize,
 ) -> [Option<f64>; 2] {
     repeats(values, height, width, channels).map(|r| r.map(|r| r.period))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::autocorrelation_at;
+
+    /// Hand-computed: columns alternating 1, -1 (mean 0) give -1 one column over, 1 two over;
+    /// rows are alike, so any lag down keeps the columns' value.
+    #[test]
+    fn autocorrelation_at_a_lag_over_its_value_at_zero() {
+        let row = [1.0f32, -1.0, 1.0, -1.0];
+        let image: Vec<f32> = row.iter().copied().cycle().take(12).collect();
+        let at = |lag| autocorrelation_at(&image, [3, 4, 1], lag);
+        assert!((at([0, 1]) + 1.0).abs() < 1e-12);
+        assert!((at([0, 2]) - 1.0).abs() < 1e-12);
+        assert!((at([2, 1]) + 1.0).abs() < 1e-12);
+        // No overlap left, or a flat image: 0.
+        assert_eq!(at([0, 4]), 0.0);
+        assert_eq!(autocorrelation_at(&[0.5; 12], [3, 4, 1], [0, 1]), 0.0);
+    }
 }

@@ -24,7 +24,7 @@ use std::collections::BTreeSet;
 
 use super::TrainConfig;
 use crate::exemplar::Exemplar;
-use crate::metrics::{Repeat, repeats};
+use crate::metrics::{Repeat, autocorrelation_at, repeats};
 
 /// The shortest period the recipe believes, in pixels.
 const MIN_PERIOD: f64 = 4.0;
@@ -46,6 +46,9 @@ pub struct Measured {
     /// The strongest repeat along rows and columns, where the autocorrelation has a peak (of
     /// [`MIN_PERIOD`] pixels or more), however weak.
     pub repeat: [Option<Repeat>; 2],
+    /// Along which axes the rows alternate ([`staggered`]): a running bond's courses, whose
+    /// joints move by half a brick from one course to the next.
+    pub staggered: [bool; 2],
 }
 
 impl Measured {
@@ -62,6 +65,40 @@ impl Measured {
     pub fn shortest_period(&self) -> Option<f64> {
         (0..2).filter_map(|axis| self.period(axis)).reduce(f64::min)
     }
+
+    /// The period after which the pattern repeats unshifted along `axis`: the clear period,
+    /// twice it where the rows alternate. The generator's encoding must repeat no sooner, or
+    /// it cannot tell one course from the next.
+    pub fn lattice_period(&self, axis: usize) -> Option<f64> {
+        let twice = if self.staggered[axis] { 2.0 } else { 1.0 };
+        self.period(axis).map(|p| p * twice)
+    }
+}
+
+/// Whether the rows of `window` alternate along `axis`: shifted by one period along it, the
+/// pattern is more like itself when also shifted by half the other axis's period than when
+/// not (bricks in a running bond, the rows of a honeycomb measured at one row's spacing).
+/// Such a pattern repeats unshifted only after two periods.
+fn staggered(window: &Exemplar, repeat: &[Option<Repeat>; 2], axis: usize) -> bool {
+    let clear = |axis: usize| {
+        repeat[axis]
+            .filter(|r| r.strength >= CLEAR_REPEAT)
+            .map(|r| r.period)
+    };
+    let (Some(along), Some(across)) = (clear(axis), clear(1 - axis)) else {
+        return false;
+    };
+    let shape = [window.height, window.width, window.channels];
+    let at = |shift: f64| {
+        let (along, shift) = (along.round() as usize, shift.round() as usize);
+        let lag = if axis == 0 {
+            [along, shift]
+        } else {
+            [shift, along]
+        };
+        autocorrelation_at(&window.values, shape, lag)
+    };
+    at(across / 2.0) > at(0.0)
 }
 
 /// Measures `exemplar` (at most 512 pixels a side are read for the period: a larger exemplar's
@@ -78,21 +115,22 @@ pub fn measure(exemplar: &Exemplar) -> Measured {
         channels: c,
         gray,
         repeat,
+        staggered: [0, 1].map(|axis| staggered(&window, &repeat, axis)),
     }
 }
 
 /// The initial K per axis (rows, cols) for `measured` at working scale `resize`, `crop` and
 /// `octaves`. The encoding's octave `j` repeats every `K * crop / 2^j` pixels, so where there is
-/// a period `P` (at the working scale), K is `P * 2^m / crop` for the octave `m` (0 to
-/// `octaves - 1`) that brings K nearest 1: that octave then repeats with the pattern, and every
-/// lower one with a multiple of it. Where there is no period, K is the exemplar's extent in
+/// a lattice period `P` ([`Measured::lattice_period`], at the working scale), K is
+/// `P * 2^m / crop` for the octave `m` (0 to `octaves - 1`) that brings K nearest 1: that
+/// octave then repeats with the pattern, and every lower one with a multiple of it. Where there is no period, K is the exemplar's extent in
 /// crops (at least 1), so the encoding repeats no sooner than the exemplar does and paints no
 /// grid of crops.
 pub fn initial_k(measured: &Measured, resize: f64, crop: usize, octaves: usize) -> Vec<f32> {
     let crop = crop as f64;
     let top = octaves.saturating_sub(1) as f64;
     (0..2)
-        .map(|axis| match measured.period(axis) {
+        .map(|axis| match measured.lattice_period(axis) {
             Some(p) => {
                 let in_crops = p * resize / crop;
                 let m = (1.0 / in_crops).log2().round().clamp(0.0, top);
@@ -134,6 +172,11 @@ pub fn apply(
     plain: bool,
 ) -> Vec<String> {
     let along = |axis: usize, name: &str| match (measured.period(axis), measured.repeat[axis]) {
+        (Some(p), Some(r)) if measured.staggered[axis] => format!(
+            "period {p:.1} px {name} (repeat {:.2}; the rows alternate: unshifted every {:.1} px)",
+            r.strength,
+            2.0 * p
+        ),
         (Some(p), Some(r)) => format!("period {p:.1} px {name} (repeat {:.2})", r.strength),
         (None, Some(r)) => format!(
             "no clear period {name} (strongest repeat {:.1} px, {:.2})",
@@ -326,6 +369,7 @@ mod tests {
             size: [512, 512],
             channels: 3,
             gray: false,
+            staggered: [false; 2],
             repeat: period.map(|p| {
                 p.map(|period| Repeat {
                     period,
@@ -392,6 +436,41 @@ mod tests {
         assert!(!lines.iter().any(|l| l.contains("less than one period")));
     }
 
+    /// A running bond repeats unshifted after two courses, a stack bond after one; a
+    /// honeycomb's rows, measured over two rows, are not doubled again.
+    #[test]
+    fn alternating_rows_double_the_lattice_period() {
+        let (side, brick_w, brick_h) = (256, 48, 16);
+        // Gray bricks with 2-px white mortar; odd courses shifted by half a brick.
+        let running: Vec<f32> = (0..side * side)
+            .map(|i| {
+                let (y, x) = (i / side, i % side);
+                let shift = (y / brick_h % 2) * brick_w / 2;
+                let mortar = y % brick_h < 2 || (x + shift) % brick_w < 2;
+                if mortar { 1.0 } else { 0.3 }
+            })
+            .collect();
+        let exemplar = |unit: &[f32]| Exemplar::from_unit(side, side, 1, unit);
+        let measured = measure(&exemplar(&running));
+        assert_eq!(measured.staggered, [true, false], "{measured:?}");
+        let down = measured.lattice_period(0).unwrap();
+        assert!((down - 2.0 * brick_h as f64).abs() < 1.0, "{measured:?}");
+        // The first course repeated: every course's joints in the same place.
+        let course = &running[..brick_h * side];
+        let stack: Vec<f32> = course.iter().copied().cycle().take(running.len()).collect();
+        let measured = measure(&exemplar(&stack));
+        assert_eq!(measured.staggered, [false, false], "{measured:?}");
+        let down = measured.lattice_period(0).unwrap();
+        assert!((down - brick_h as f64).abs() < 1.0, "{measured:?}");
+        // The honeycomb's period down already spans two rows of cells.
+        let honeycomb = crate::exemplar::read_exemplar(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/exemplars/honeycomb.png"
+        )))
+        .unwrap();
+        assert_eq!(measure(&honeycomb).staggered, [false, false]);
+    }
+
     #[test]
     fn a_stochastic_exemplar_is_not_painted_as_a_grid_of_crops() {
         // No period: the encoding repeats with the exemplar (256 px at scale 0.5 = 8 crops).
@@ -410,6 +489,7 @@ mod tests {
             channels: 3,
             gray: false,
             repeat: [repeat, repeat],
+            staggered: [false; 2],
         };
         assert_eq!((measured.period(0), measured.period(1)), (None, None));
         let mut config = TrainConfig {
