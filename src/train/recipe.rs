@@ -18,7 +18,8 @@
 //! Built, measured and not made by default (the book's experiments have the figures): a scale
 //! at which the crop holds two of the longer periods, the initial K from the period
 //! ([`initial_k`]; printed, and `k_init` sets it), K from the exemplar's extent where it has no
-//! clear period, and the coarse critic ([`super::coarse`]).
+//! clear period, and the coarse critic ([`super::coarse`]), on its own and, where the rows
+//! alternate, with K on two courses ([`alternating_rows`]; printed as a suggestion).
 
 use std::collections::BTreeSet;
 
@@ -139,6 +140,49 @@ pub fn initial_k(measured: &Measured, resize: f64, crop: usize, octaves: usize) 
             None => (measured.size[axis] as f64 * resize / crop).max(1.0) as f32,
         })
         .collect()
+}
+
+/// How many of its shorter periods a coarse crop spans on an image whose rows alternate: the
+/// middle of the two to four that let a critic see the arrangement.
+pub const COARSE_PERIODS: f64 = 3.0;
+
+/// For a plain image whose rows alternate (a running bond, [`Measured::staggered`]) and whose
+/// fine crop holds less than about [`COARSE_PERIODS`] of its shorter period: the stride at
+/// which a coarse crop ([`super::coarse`]) spans about [`COARSE_PERIODS`] periods, to pair with
+/// K on the lattice period ([`initial_k`]), so that the generator can tell one course from the
+/// next and a critic sees the joints move from one course to the next. Suggested, not applied:
+/// on one photo it painted staggered joints on every course at one seed of two and joints on
+/// every other course at the other (the book's experiments have the figures).
+pub fn alternating_rows(measured: &Measured, config: &TrainConfig) -> Option<usize> {
+    if !measured.staggered.contains(&true) {
+        return None;
+    }
+    let period = measured.shortest_period()? * config.resize;
+    let side = measured.size[0].min(measured.size[1]) as f64 * config.resize;
+    let stride = ((COARSE_PERIODS * period / config.crop as f64).round() as usize)
+        .min(super::coarse::largest_stride(side as usize, config.crop))
+        .min(super::config::MAX_COARSE_STRIDE);
+    (stride >= 2).then_some(stride)
+}
+
+/// The line that suggests [`alternating_rows`]' stride with K on the lattice period, where the
+/// run set neither.
+fn suggest_alternating_rows(
+    measured: &Measured,
+    config: &TrainConfig,
+    explicit: &BTreeSet<String>,
+) -> Option<String> {
+    if explicit.contains("k_init") || explicit.contains("coarse_stride") {
+        return None;
+    }
+    let stride = alternating_rows(measured, config)?;
+    let k = initial_k(measured, config.resize, config.crop, config.octaves);
+    Some(format!(
+        "the rows alternate: to let a critic see the joints move from course to course, try --coarse-stride {stride} (crops of {} px, about {COARSE_PERIODS} periods) with k_init = [{:.3}, {:.3}] in a --config file (half the iterations; not a default: see the guide's Structure section)",
+        stride * config.crop,
+        k[0],
+        k[1]
+    ))
 }
 
 /// The smallest working scale the recipe takes from the period: below it a photo loses the
@@ -331,7 +375,11 @@ pub fn settle(
         super::ExemplarSource::Image(path) => {
             let exemplar = crate::exemplar::read_exemplar(path)?;
             let plain = !config.solid && config.guide.is_none();
-            lines.extend(apply(&measure(&exemplar), config, explicit, plain));
+            let measured = measure(&exemplar);
+            lines.extend(apply(&measured, config, explicit, plain));
+            if plain {
+                lines.extend(suggest_alternating_rows(&measured, config, explicit));
+            }
         }
         super::ExemplarSource::Maps(files) => {
             // The colour map's period sets the working scale for every map; the set is
@@ -469,6 +517,48 @@ mod tests {
         )))
         .unwrap();
         assert_eq!(measure(&honeycomb).staggered, [false, false]);
+    }
+
+    #[test]
+    fn alternating_rows_suggest_a_coarse_critic_over_three_courses() {
+        // brick.jpg as measured: courses 40.1 px, bricks 135 px, at the CPU's scale and crop.
+        let brick = Measured {
+            size: [640, 640],
+            staggered: [true, false],
+            ..measured([Some(40.1), Some(135.0)])
+        };
+        let cpu = TrainConfig {
+            resize: 0.75,
+            crop: 32,
+            ..TrainConfig::default()
+        };
+        assert_eq!(alternating_rows(&brick, &cpu), Some(3));
+        let line = suggest_alternating_rows(&brick, &cpu, &BTreeSet::new()).unwrap();
+        assert!(line.contains("--coarse-stride 3 (crops of 96 px"), "{line}");
+        let k = initial_k(&brick, 0.75, 32, cpu.octaves);
+        let k_init = format!("k_init = [{:.3}, {:.3}]", k[0], k[1]);
+        assert!(line.contains(&k_init), "{line}");
+        assert!(
+            (k[0] - 1.88).abs() < 0.01 && (k[1] - 3.16).abs() < 0.01,
+            "{k:?}"
+        );
+        // A run that set either key hears nothing more.
+        for key in ["k_init", "coarse_stride"] {
+            let explicit = BTreeSet::from([key.to_string()]);
+            assert_eq!(suggest_alternating_rows(&brick, &cpu, &explicit), None);
+        }
+        // Rows that do not alternate, and a crop that already spans about three courses.
+        let stack = Measured {
+            staggered: [false; 2],
+            ..brick.clone()
+        };
+        assert_eq!(alternating_rows(&stack, &cpu), None);
+        let gpu = TrainConfig {
+            resize: 1.0,
+            crop: 128,
+            ..TrainConfig::default()
+        };
+        assert_eq!(alternating_rows(&brick, &gpu), None);
     }
 
     #[test]

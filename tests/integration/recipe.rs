@@ -188,6 +188,58 @@ fn a_crop_holds_a_whole_cell_of_a_periodic_photo() {
     assert!(!err.contains("less than one period"), "{err}");
 }
 
+/// A running bond (each course's joints halfway between the last one's): the recipe suggests
+/// the coarse critic over three courses with K on the two after which it repeats, leaves the
+/// run's settings as they were, and the suggestion runs as printed.
+#[test]
+fn alternating_rows_suggest_the_coarse_critic_with_k_on_two_courses() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 48x16 bricks with 2-px mortar, every other course shifted by half a brick.
+    let bond = image::GrayImage::from_fn(256, 256, |x, y| {
+        let shift = (y / 16 % 2) * 24;
+        let mortar = y % 16 < 2 || (x + shift) % 48 < 2;
+        image::Luma([if mortar { 255 } else { 77 }])
+    });
+    bond.save(d.join("bond.png")).unwrap();
+    std::fs::write(d.join("tiny.toml"), TINY).unwrap();
+    let train = |out: &str, config: &str, extra: &[&str]| {
+        let mut args = vec!["train", "bond.png", "--config", config];
+        args.extend(["--iterations", "1", "--out", out]);
+        args.extend(extra);
+        let run = ipfn(d, &args);
+        assert!(run.status.success(), "{}", stderr(&run));
+        let text = std::fs::read_to_string(d.join(out).join("config.toml")).unwrap();
+        let config = TrainConfig::from_toml(&text, std::path::Path::new("config.toml")).unwrap();
+        (stderr(&run), config)
+    };
+    let (err, config) = train("runs/bond", "tiny.toml", &[]);
+    // Courses of 16 px at scale 1 and 32-px crops: three courses are 48 px, a stride of 2.
+    let said = "the rows alternate: to let a critic see the joints move from course to course, try --coarse-stride 2";
+    assert!(err.contains(said), "{err}");
+    assert_eq!((config.coarse_stride, config.k_init), (0, None), "{err}");
+    // K down on two courses (32 px: one crop); across, an octave on the period measured there.
+    let k = err.split("with k_init = [").nth(1).unwrap();
+    let k: Vec<f32> = k[..k.find(']').unwrap()]
+        .split(", ")
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert!((k[0] - 1.0).abs() < 0.05 && k[1] > 0.5, "{k:?}");
+    let with_k = format!("{TINY}k_init = [{}, {}]\n", k[0], k[1]);
+    std::fs::write(d.join("k.toml"), with_k).unwrap();
+    let (err, config) = train("runs/tried", "k.toml", &["--coarse-stride", "2"]);
+    assert!(!err.contains("the rows alternate: to let"), "{err}");
+    assert_eq!((config.coarse_stride, config.k_init), (2, Some(k)));
+    let model = Checkpoint::load(&d.join("runs/tried/latest.ipfn")).unwrap();
+    assert!(
+        model
+            .tensors
+            .keys()
+            .any(|k| k.starts_with("coarse_critic.")),
+        "the coarse critic is saved"
+    );
+}
+
 #[test]
 fn a_gray_photo_stored_as_rgb_trains_and_paints_as_gray() {
     let dir = tempfile::tempdir().unwrap();
