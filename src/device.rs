@@ -153,49 +153,37 @@ pub fn gpu_device_node_present() -> bool {
     render_node || std::path::Path::new("/dev/nvidia0").exists()
 }
 
-/// The CUDA device, probed once per process with a one-element round trip, so a machine without
-/// a driver or GPU gets an error instead of a panic on first use.
+/// The CUDA device, probed once per process, so a machine without a driver or GPU gets an
+/// error instead of a panic on first use.
 #[cfg(feature = "cuda")]
 pub fn cuda_device() -> Result<Device> {
     static DEVICE: std::sync::OnceLock<std::result::Result<Device, String>> =
         std::sync::OnceLock::new();
-    DEVICE
-        .get_or_init(|| {
-            // The first panic message from any thread (the CUDA runtime initialises on a
-            // server thread, whose panic reaches this one only as a closed channel).
-            static FIRST_PANIC: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
-            let hook = std::panic::take_hook();
-            std::panic::set_hook(Box::new(|info| {
-                let message = info
-                    .payload()
-                    .downcast_ref::<String>()
-                    .cloned()
-                    .or_else(|| info.payload().downcast_ref::<&str>().map(|s| s.to_string()))
-                    .unwrap_or_else(|| "CUDA initialisation failed".into());
-                let mut first = FIRST_PANIC.lock().unwrap_or_else(|e| e.into_inner());
-                first.get_or_insert(message);
-            }));
-            let probe = std::panic::catch_unwind(|| {
-                let device = Device::cuda(0);
-                let one = Tensor::<1>::from_floats([1.0f32].as_slice(), &device);
-                one.try_into_vec_as::<f32>().map(|_| device)
-            });
-            std::panic::set_hook(hook);
-            let first = FIRST_PANIC
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .take()
-                .map(|m| m.split_whitespace().collect::<Vec<_>>().join(" "));
-            match probe {
-                Ok(Ok(device)) => Ok(device),
-                Ok(Err(e)) => Err(first.unwrap_or_else(|| format!("{e:?}"))),
-                Err(_) => Err(first.unwrap_or_else(|| "CUDA initialisation failed".into())),
-            }
-        })
-        .clone()
-        .map_err(|e| {
-            input_error!("--device cuda: no usable CUDA device ({e}); check the NVIDIA driver (nvidia-smi) or use --device wgpu or cpu")
-        })
+    DEVICE.get_or_init(probe_cuda).clone().map_err(|e| {
+        input_error!("--device cuda: no usable CUDA device ({e}); check the NVIDIA driver (nvidia-smi) or use --device wgpu or cpu")
+    })
+}
+
+/// The first CUDA device and a one-element round trip through it. CubeCL's CUDA runtime lists
+/// no device where the driver library or the card is missing (it looks for the library before
+/// loading it), so the common failures are errors; a driver that loads but fails later still
+/// panics on burn's server thread, which reaches this one as a failed round trip or an unwind.
+/// (burn's `Device::enumerate` would also start the wgpu runtime to list every device.)
+#[cfg(feature = "cuda")]
+fn probe_cuda() -> std::result::Result<Device, String> {
+    if cubecl::device::Device::cuda(0).is_err() {
+        return Err("the NVIDIA driver or a CUDA device is missing".into());
+    }
+    let round_trip = std::panic::catch_unwind(|| {
+        let device = Device::cuda(0);
+        let one = Tensor::<1>::from_floats([1.0f32].as_slice(), &device);
+        one.try_into_vec_as::<f32>().map(|_| device)
+    });
+    match round_trip {
+        Ok(Ok(device)) => Ok(device),
+        Ok(Err(e)) => Err(format!("{e:?}")),
+        Err(_) => Err("CUDA initialisation failed".into()),
+    }
 }
 
 /// Without the `cuda` feature, `--device cuda` says how to get it.
