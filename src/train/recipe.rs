@@ -150,9 +150,9 @@ pub const COARSE_PERIODS: f64 = 3.0;
 /// fine crop holds less than about [`COARSE_PERIODS`] of its shorter period: the stride at
 /// which a coarse crop ([`super::coarse`]) spans about [`COARSE_PERIODS`] periods, to pair with
 /// K on the lattice period ([`initial_k`]), so that the generator can tell one course from the
-/// next and a critic sees the joints move from one course to the next. Suggested, not applied:
-/// on one photo it painted staggered joints on every course at one seed of two and joints on
-/// every other course at the other (the book's experiments have the figures).
+/// next and a critic sees the joints move from one course to the next; K is best held there.
+/// Suggested, not applied: on one photo it has painted the bond at some seeds only, and the
+/// structure distance has not yet ranked it above the defaults (the book's experiments).
 pub fn alternating_rows(measured: &Measured, config: &TrainConfig) -> Option<usize> {
     if !measured.staggered.contains(&true) {
         return None;
@@ -178,7 +178,7 @@ fn suggest_alternating_rows(
     let stride = alternating_rows(measured, config)?;
     let k = initial_k(measured, config.resize, config.crop, config.octaves);
     Some(format!(
-        "the rows alternate: to let a critic see the joints move from course to course, try --coarse-stride {stride} (crops of {} px, about {COARSE_PERIODS} periods) with k_init = [{:.3}, {:.3}] in a --config file (half the iterations; not a default: see the guide's Structure section)",
+        "the rows alternate: to let a critic see the joints move from course to course, try --coarse-stride {stride} (crops of {} px, about {COARSE_PERIODS} periods) with k_init = [{:.3}, {:.3}] and k_lr = 0 (K held) in a --config file (half the iterations; not a default: see the guide's Structure section)",
         stride * config.crop,
         k[0],
         k[1]

@@ -225,11 +225,13 @@ fn alternating_rows_suggest_the_coarse_critic_with_k_on_two_courses() {
         .map(|v| v.parse().unwrap())
         .collect();
     assert!((k[0] - 1.0).abs() < 0.05 && k[1] > 0.5, "{k:?}");
-    let with_k = format!("{TINY}k_init = [{}, {}]\n", k[0], k[1]);
+    assert!(err.contains("] and k_lr = 0 (K held)"), "{err}");
+    let with_k = format!("{TINY}k_init = [{}, {}]\nk_lr = 0.0\n", k[0], k[1]);
     std::fs::write(d.join("k.toml"), with_k).unwrap();
     let (err, config) = train("runs/tried", "k.toml", &["--coarse-stride", "2"]);
     assert!(!err.contains("the rows alternate: to let"), "{err}");
     assert_eq!((config.coarse_stride, config.k_init), (2, Some(k)));
+    assert_eq!(config.k_lr, 0.0);
     let model = Checkpoint::load(&d.join("runs/tried/latest.ipfn")).unwrap();
     assert!(
         model
