@@ -137,6 +137,25 @@ fn a_time_budget_plans_the_run_scores_it_and_keeps_the_best() {
     assert!(stderr(&by_folder).contains("best.ipfn"));
 }
 
+/// Trains `exemplar` (in `d`) for one iteration with the `config` file and `extra` flags into
+/// `out`; returns what training said and the run's saved settings.
+fn train_once(
+    d: &std::path::Path,
+    exemplar: &str,
+    config: &str,
+    out: &str,
+    extra: &[&str],
+) -> (String, TrainConfig) {
+    let mut args = vec!["train", exemplar, "--config", config];
+    args.extend(["--iterations", "1", "--out", out]);
+    args.extend(extra);
+    let run = ipfn(d, &args);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let text = std::fs::read_to_string(d.join(out).join("config.toml")).unwrap();
+    let config = TrainConfig::from_toml(&text, std::path::Path::new("config.toml")).unwrap();
+    (stderr(&run), config)
+}
+
 /// A periodic photo whose cells are wider than a crop trains at the scale at which a crop holds
 /// one (the shipped honeycomb: cells 59.5 px across, crops of 32 px, scale 0.5), and still
 /// paints at its own scale; a run that sets its scale keeps it, and the CPU's crop, and is told
@@ -149,23 +168,7 @@ fn a_crop_holds_a_whole_cell_of_a_periodic_photo() {
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("exemplars/honeycomb.png");
     std::fs::copy(honeycomb, d.join("h.png")).unwrap();
     std::fs::write(d.join("tiny.toml"), TINY).unwrap();
-    let train = |out: &str, extra: &[&str]| {
-        let mut args = vec![
-            "train",
-            "h.png",
-            "--config",
-            "tiny.toml",
-            "--iterations",
-            "1",
-        ];
-        args.extend(["--out", out]);
-        args.extend(extra);
-        let run = ipfn(d, &args);
-        assert!(run.status.success(), "{}", stderr(&run));
-        let text = std::fs::read_to_string(d.join(out).join("config.toml")).unwrap();
-        let config = TrainConfig::from_toml(&text, std::path::Path::new("config.toml")).unwrap();
-        (stderr(&run), config)
-    };
+    let train = |out: &str, extra: &[&str]| train_once(d, "h.png", "tiny.toml", out, extra);
     let (err, config) = train("runs/h", &[]);
     assert!(err.contains("working scale 0.5"), "{err}");
     assert_eq!((config.crop, config.resize), (32, 0.5));
@@ -203,16 +206,8 @@ fn alternating_rows_suggest_the_coarse_critic_with_k_on_two_courses() {
     });
     bond.save(d.join("bond.png")).unwrap();
     std::fs::write(d.join("tiny.toml"), TINY).unwrap();
-    let train = |out: &str, config: &str, extra: &[&str]| {
-        let mut args = vec!["train", "bond.png", "--config", config];
-        args.extend(["--iterations", "1", "--out", out]);
-        args.extend(extra);
-        let run = ipfn(d, &args);
-        assert!(run.status.success(), "{}", stderr(&run));
-        let text = std::fs::read_to_string(d.join(out).join("config.toml")).unwrap();
-        let config = TrainConfig::from_toml(&text, std::path::Path::new("config.toml")).unwrap();
-        (stderr(&run), config)
-    };
+    let train =
+        |out: &str, config: &str, extra: &[&str]| train_once(d, "bond.png", config, out, extra);
     let (err, config) = train("runs/bond", "tiny.toml", &[]);
     // Courses of 16 px at scale 1 and 32-px crops: three courses are 48 px, a stride of 2.
     let said = "the rows alternate: to let a critic see the joints move from course to course, try --coarse-stride 2";

@@ -23,9 +23,14 @@
 
 use std::collections::BTreeSet;
 
+mod rows;
+
+pub use rows::{COARSE_PERIODS, alternating_rows};
+use rows::{staggered, suggest_alternating_rows};
+
 use super::TrainConfig;
 use crate::exemplar::Exemplar;
-use crate::metrics::{Repeat, autocorrelation_at, repeats};
+use crate::metrics::{Repeat, repeats};
 
 /// The shortest period the recipe believes, in pixels.
 const MIN_PERIOD: f64 = 4.0;
@@ -76,32 +81,6 @@ impl Measured {
     }
 }
 
-/// Whether the rows of `window` alternate along `axis`: shifted by one period along it, the
-/// pattern is more like itself when also shifted by half the other axis's period than when
-/// not (bricks in a running bond, the rows of a honeycomb measured at one row's spacing).
-/// Such a pattern repeats unshifted only after two periods.
-fn staggered(window: &Exemplar, repeat: &[Option<Repeat>; 2], axis: usize) -> bool {
-    let clear = |axis: usize| {
-        repeat[axis]
-            .filter(|r| r.strength >= CLEAR_REPEAT)
-            .map(|r| r.period)
-    };
-    let (Some(along), Some(across)) = (clear(axis), clear(1 - axis)) else {
-        return false;
-    };
-    let shape = [window.height, window.width, window.channels];
-    let at = |shift: f64| {
-        let (along, shift) = (along.round() as usize, shift.round() as usize);
-        let lag = if axis == 0 {
-            [along, shift]
-        } else {
-            [shift, along]
-        };
-        autocorrelation_at(&window.values, shape, lag)
-    };
-    at(across / 2.0) > at(0.0)
-}
-
 /// Measures `exemplar` (at most 512 pixels a side are read for the period: a larger exemplar's
 /// centre).
 pub fn measure(exemplar: &Exemplar) -> Measured {
@@ -140,49 +119,6 @@ pub fn initial_k(measured: &Measured, resize: f64, crop: usize, octaves: usize) 
             None => (measured.size[axis] as f64 * resize / crop).max(1.0) as f32,
         })
         .collect()
-}
-
-/// How many of its shorter periods a coarse crop spans on an image whose rows alternate: the
-/// middle of the two to four that let a critic see the arrangement.
-pub const COARSE_PERIODS: f64 = 3.0;
-
-/// For a plain image whose rows alternate (a running bond, [`Measured::staggered`]) and whose
-/// fine crop holds less than about [`COARSE_PERIODS`] of its shorter period: the stride at
-/// which a coarse crop ([`super::coarse`]) spans about [`COARSE_PERIODS`] periods, to pair with
-/// K on the lattice period ([`initial_k`]), so that the generator can tell one course from the
-/// next and a critic sees the joints move from one course to the next; K is best held there.
-/// Suggested, not applied: on one photo it has painted the bond at some seeds only, and the
-/// structure distance has not yet ranked it above the defaults (the book's experiments).
-pub fn alternating_rows(measured: &Measured, config: &TrainConfig) -> Option<usize> {
-    if !measured.staggered.contains(&true) {
-        return None;
-    }
-    let period = measured.shortest_period()? * config.resize;
-    let side = measured.size[0].min(measured.size[1]) as f64 * config.resize;
-    let stride = ((COARSE_PERIODS * period / config.crop as f64).round() as usize)
-        .min(super::coarse::largest_stride(side as usize, config.crop))
-        .min(super::config::MAX_COARSE_STRIDE);
-    (stride >= 2).then_some(stride)
-}
-
-/// The line that suggests [`alternating_rows`]' stride with K on the lattice period, where the
-/// run set neither.
-fn suggest_alternating_rows(
-    measured: &Measured,
-    config: &TrainConfig,
-    explicit: &BTreeSet<String>,
-) -> Option<String> {
-    if explicit.contains("k_init") || explicit.contains("coarse_stride") {
-        return None;
-    }
-    let stride = alternating_rows(measured, config)?;
-    let k = initial_k(measured, config.resize, config.crop, config.octaves);
-    Some(format!(
-        "the rows alternate: to let a critic see the joints move from course to course, try --coarse-stride {stride} (crops of {} px, about {COARSE_PERIODS} periods) with k_init = [{:.3}, {:.3}] and k_lr = 0 (K held) in a --config file (half the iterations; not a default: see the guide's Structure section)",
-        stride * config.crop,
-        k[0],
-        k[1]
-    ))
 }
 
 /// The smallest working scale the recipe takes from the period: below it a photo loses the
@@ -298,7 +234,7 @@ pub const BUDGET_ITERATIONS: u64 = 1_000_000;
 /// On a CPU, the network, batch, learning rates, scale and crop of `configs/cpu.toml` (this
 /// file is the one place they are written), for a good result within 15 minutes on 2 cores; a
 /// GPU keeps the authors' (10x128, batch 4, lr 1e-4, the exemplar's own scale, 128-pixel crops).
-const CPU_PRESET: &str = include_str!("../../configs/cpu.toml");
+const CPU_PRESET: &str = include_str!("../../../configs/cpu.toml");
 
 /// The keys of [`CPU_PRESET`] a CPU run takes.
 const CPU_KEYS: [&str; 7] = [
@@ -412,7 +348,7 @@ pub fn settle(
 mod tests {
     use super::*;
 
-    fn measured(period: [Option<f64>; 2]) -> Measured {
+    pub(super) fn measured(period: [Option<f64>; 2]) -> Measured {
         Measured {
             size: [512, 512],
             channels: 3,
@@ -486,81 +422,6 @@ mod tests {
 
     /// A running bond repeats unshifted after two courses, a stack bond after one; a
     /// honeycomb's rows, measured over two rows, are not doubled again.
-    #[test]
-    fn alternating_rows_double_the_lattice_period() {
-        let (side, brick_w, brick_h) = (256, 48, 16);
-        // Gray bricks with 2-px white mortar; odd courses shifted by half a brick.
-        let running: Vec<f32> = (0..side * side)
-            .map(|i| {
-                let (y, x) = (i / side, i % side);
-                let shift = (y / brick_h % 2) * brick_w / 2;
-                let mortar = y % brick_h < 2 || (x + shift) % brick_w < 2;
-                if mortar { 1.0 } else { 0.3 }
-            })
-            .collect();
-        let exemplar = |unit: &[f32]| Exemplar::from_unit(side, side, 1, unit);
-        let measured = measure(&exemplar(&running));
-        assert_eq!(measured.staggered, [true, false], "{measured:?}");
-        let down = measured.lattice_period(0).unwrap();
-        assert!((down - 2.0 * brick_h as f64).abs() < 1.0, "{measured:?}");
-        // The first course repeated: every course's joints in the same place.
-        let course = &running[..brick_h * side];
-        let stack: Vec<f32> = course.iter().copied().cycle().take(running.len()).collect();
-        let measured = measure(&exemplar(&stack));
-        assert_eq!(measured.staggered, [false, false], "{measured:?}");
-        let down = measured.lattice_period(0).unwrap();
-        assert!((down - brick_h as f64).abs() < 1.0, "{measured:?}");
-        // The honeycomb's period down already spans two rows of cells.
-        let honeycomb = crate::exemplar::read_exemplar(std::path::Path::new(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/exemplars/honeycomb.png"
-        )))
-        .unwrap();
-        assert_eq!(measure(&honeycomb).staggered, [false, false]);
-    }
-
-    #[test]
-    fn alternating_rows_suggest_a_coarse_critic_over_three_courses() {
-        // brick.jpg as measured: courses 40.1 px, bricks 135 px, at the CPU's scale and crop.
-        let brick = Measured {
-            size: [640, 640],
-            staggered: [true, false],
-            ..measured([Some(40.1), Some(135.0)])
-        };
-        let cpu = TrainConfig {
-            resize: 0.75,
-            crop: 32,
-            ..TrainConfig::default()
-        };
-        assert_eq!(alternating_rows(&brick, &cpu), Some(3));
-        let line = suggest_alternating_rows(&brick, &cpu, &BTreeSet::new()).unwrap();
-        assert!(line.contains("--coarse-stride 3 (crops of 96 px"), "{line}");
-        let k = initial_k(&brick, 0.75, 32, cpu.octaves);
-        let k_init = format!("k_init = [{:.3}, {:.3}]", k[0], k[1]);
-        assert!(line.contains(&k_init), "{line}");
-        assert!(
-            (k[0] - 1.88).abs() < 0.01 && (k[1] - 3.16).abs() < 0.01,
-            "{k:?}"
-        );
-        // A run that set either key hears nothing more.
-        for key in ["k_init", "coarse_stride"] {
-            let explicit = BTreeSet::from([key.to_string()]);
-            assert_eq!(suggest_alternating_rows(&brick, &cpu, &explicit), None);
-        }
-        // Rows that do not alternate, and a crop that already spans about three courses.
-        let stack = Measured {
-            staggered: [false; 2],
-            ..brick.clone()
-        };
-        assert_eq!(alternating_rows(&stack, &cpu), None);
-        let gpu = TrainConfig {
-            resize: 1.0,
-            crop: 128,
-            ..TrainConfig::default()
-        };
-        assert_eq!(alternating_rows(&brick, &gpu), None);
-    }
-
     #[test]
     fn a_stochastic_exemplar_is_not_painted_as_a_grid_of_crops() {
         // No period: the encoding repeats with the exemplar (256 px at scale 0.5 = 8 crops).
