@@ -96,7 +96,7 @@ fn main() {
             ..base_config.clone()
         };
         let macs = config.macs_per_point();
-        let painter = Synth::new(config.clone(), GeneratorWeights::random(&config))
+        let painter = Synth::new(config.clone(), GeneratorWeights::random(&config, 0))
             .seed(1)
             .device(DeviceChoice::Cpu)
             .painter()

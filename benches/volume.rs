@@ -27,7 +27,7 @@ fn main() {
         .with_crop(64);
     let shapes = config.layer_shapes();
     let flop_per_point = 2.0 * config.macs_per_point() as f64;
-    let painter = Synth::new(config.clone(), GeneratorWeights::random(&config))
+    let painter = Synth::new(config.clone(), GeneratorWeights::random(&config, 0))
         .seed(1)
         .painter()
         .unwrap();

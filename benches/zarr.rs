@@ -127,7 +127,7 @@ fn main() {
         .with_channels(1)
         .with_crop(64);
     let mut ckpt = Checkpoint::new();
-    GeneratorWeights::random(&config).write_to(&config, &mut ckpt);
+    GeneratorWeights::random(&config, 0).write_to(&config, &mut ckpt);
     ckpt.save(&d.join("v.ipfn")).unwrap();
     let side = cube.to_string();
     let volume = |out: &str| -> Vec<String> {

@@ -14,7 +14,7 @@ fn kernel_device_memory_is_bounded_by_the_launch_not_the_image() {
     let device = DeviceChoice::Wgpu.burn_device().unwrap().unwrap();
     // A small RGB model, so that lavapipe paints 384² in about a second.
     let config = GeneratorConfig::new().with_hidden_layers(3).with_width(32);
-    let weights = GeneratorWeights::random(&config);
+    let weights = GeneratorWeights::random(&config, 0);
     let field = LatentField::hashed(5, 2, config.latent_dim);
     let side = 384;
     let axes: Vec<Vec<f32>> = (0..2)

@@ -366,7 +366,7 @@ fn volume_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
         .with_dims(3)
         .with_channels(1)
         .with_crop(64);
-    let weights = GeneratorWeights::random(&config);
+    let weights = GeneratorWeights::random(&config, 0);
     let runs = plan.runs.min(2);
     for_each_engine(plan, &config, &weights, |engine| {
         for &n in &plan.volumes {

@@ -235,7 +235,7 @@ mod tests {
             .with_hidden_layers(3)
             .with_width(16)
             .with_guidance(guided as usize);
-        let mut weights = GeneratorWeights::random(&config);
+        let mut weights = GeneratorWeights::random(&config, 0);
         weights.k = (0..dims).map(|d| 0.8 + 0.3 * d as f32).collect();
         let n = 300;
         let noise = |i: usize, salt: u64| {

@@ -311,9 +311,20 @@ pub struct GeneratorWeights {
 pub const CONFIG_KEY: &str = "generator_config";
 
 impl GeneratorWeights {
-    /// Random weights for `config` (PyTorch-style uniform init via burn, on the CPU).
-    pub fn random(config: &GeneratorConfig) -> Self {
-        config.init(&Device::flex()).weights()
+    /// Random weights for `config`, drawn from `seed` (the same weights on every run): PyTorch's
+    /// default uniform init, `±1 / sqrt(inputs)` for every weight and bias, and K at 1.
+    pub fn random(config: &GeneratorConfig, seed: u64) -> Self {
+        let mut weights = config.init(&Device::flex()).weights();
+        for (l, layer) in weights.layers.iter_mut().enumerate() {
+            let bound = (layer.inputs as f32).sqrt().recip();
+            let values = layer.weight.iter_mut().chain(&mut layer.bias);
+            for (i, v) in values.enumerate() {
+                let unit = (crate::latent::derive_seed(seed, &[l as u64, i as u64]) >> 40) as f32
+                    / 16_777_216.0;
+                *v = (2.0 * unit - 1.0) * bound;
+            }
+        }
+        weights
     }
 
     /// Stores config and weights under the `generator.*` names.

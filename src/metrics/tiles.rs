@@ -192,8 +192,12 @@ pub struct Repeat {
 
 /// The strongest repeat along rows (vertical, `[0]`) and columns (horizontal, `[1]`) of an image
 /// `[height, width, channels]`: the lag of the first autocorrelation peak after the first
-/// minimum that reaches 70% of the highest peak, for lags up to half the side, refined to a
-/// fraction of a pixel by a parabola. `None` where there is no such peak.
+/// minimum whose prominence reaches 70% of the most prominent peak's, for lags up to half the
+/// side, refined to a fraction of a pixel by a parabola. `None` where there is no such peak.
+///
+/// Prominence, not height: where something else correlates at every lag (a brick wall's
+/// courses, along the courses), the whole profile stands high, and a ripple on it can be
+/// nearly as high as the bricks' own peak.
 pub fn repeats(
     values: &[f32],
     height: usize,
@@ -224,14 +228,7 @@ pub fn repeats(
         if r[0] <= 0.0 || r.iter().all(|&v| (r[0] - v).abs() <= 1e-9 * r[0]) {
             return None;
         }
-        let first_min = (1..max_lag).find(|&l| r[l] <= r[l - 1] && r[l] <= r[l + 1])?;
-        let peaks: Vec<usize> = (first_min + 1..max_lag)
-            .filter(|&l| r[l] > r[l - 1] && r[l] >= r[l + 1] && r[l] > 0.0)
-            .collect();
-        let highest = peaks.iter().map(|&l| r[l]).fold(0.0, f64::max);
-        // The first peak nearly as high as the highest: a non-integer period's multiples can
-        // land closer to whole lags and so stand slightly higher than the period itself.
-        let peak = *peaks.iter().find(|&&l| r[l] >= 0.7 * highest)?;
+        let peak = clear_peak(&r)?;
         // Parabolic refinement of the peak's lag.
         let (a, b, c) = (r[peak - 1], r[peak], r[peak + 1]);
         let denom = a - 2.0 * b + c;
@@ -249,6 +246,36 @@ pub fn repeats(
         along(height, width, &|x, y| g(y, x)),
         along(width, height, &|y, x| g(y, x)),
     ]
+}
+
+/// The lag of the first peak of an autocorrelation profile `r` (`r[lag]`, lag 0 first) after its
+/// first minimum whose prominence reaches 70% of the most prominent peak's; `None` without one.
+fn clear_peak(r: &[f64]) -> Option<usize> {
+    let max_lag = r.len() - 1;
+    let first_min = (1..max_lag).find(|&l| r[l] <= r[l - 1] && r[l] <= r[l + 1])?;
+    let peaks: Vec<usize> = (first_min + 1..max_lag)
+        .filter(|&l| r[l] > r[l - 1] && r[l] >= r[l + 1] && r[l] > 0.0)
+        .collect();
+    let prominence: Vec<f64> = peaks
+        .iter()
+        .map(|&l| peak_prominence(&r[first_min..], l - first_min))
+        .collect();
+    let highest = prominence.iter().copied().fold(0.0, f64::max);
+    // The first peak nearly as prominent as the most: a non-integer period's multiples can
+    // land closer to whole lags and so stand slightly higher than the period itself.
+    Some(peaks[prominence.iter().position(|&p| p >= 0.7 * highest)?])
+}
+
+/// How far `r[at]`, a local peak, stands above the higher of the lowest points on either side
+/// before the profile rises above it again (or ends): the peak's topographic prominence.
+fn peak_prominence(r: &[f64], at: usize) -> f64 {
+    let base = |side: &mut dyn Iterator<Item = &f64>| {
+        side.take_while(|&&v| v <= r[at])
+            .fold(r[at], |low, &v| low.min(v))
+    };
+    let left = base(&mut r[..at].iter().rev());
+    let right = base(&mut r[at + 1..].iter());
+    r[at] - left.max(right)
 }
 
 /// The mean over channels of each pixel, with the image's mean removed.
@@ -300,7 +327,23 @@ pub fn dominant_period(
 
 #[cfg(test)]
 mod tests {
-    use super::autocorrelation_at;
+    use super::{autocorrelation_at, clear_peak};
+
+    /// Hand-made profiles. Along a brick wall's courses the whole profile stands high, and a
+    /// ripple on it (lag 3) is higher than 70% of the bricks' own peak (lag 6): by height it
+    /// would be the period, by prominence (0.02 against 0.2) it is not.
+    #[test]
+    fn the_period_is_the_prominent_peak_not_a_ripple_on_a_high_profile() {
+        let on_a_plateau = [1.0, 0.6, 0.5, 0.52, 0.5, 0.5, 0.7, 0.5, 0.5];
+        assert_eq!(clear_peak(&on_a_plateau), Some(6));
+        // Two peaks of nearly equal prominence: the first is the period, the second its
+        // multiple, even where the multiple stands higher.
+        let multiples = [1.0, 0.0, 0.8, 0.0, 0.85, 0.0, 0.0];
+        assert_eq!(clear_peak(&multiples), Some(2));
+        // No minimum, or no peak after it: no period.
+        assert_eq!(clear_peak(&[1.0, 0.8, 0.6, 0.4]), None);
+        assert_eq!(clear_peak(&[1.0, 0.5, 0.4, 0.3, 0.3]), None);
+    }
 
     /// Hand-computed: columns alternating 1, -1 (mean 0) give -1 one column over, 1 two over;
     /// rows are alike, so any lag down keeps the columns' value.

@@ -44,7 +44,7 @@ mod tests {
         assert_eq!(decay_at(0.99, 10_000), 0.99);
         let config = GeneratorConfig::new().with_hidden_layers(1).with_width(4);
         let zero = {
-            let mut w = GeneratorWeights::random(&config);
+            let mut w = GeneratorWeights::random(&config, 0);
             w.k.iter_mut().for_each(|k| *k = 0.0);
             w
         };

@@ -94,7 +94,7 @@ fn the_kernel_agrees_with_the_cpu_on_3d_guided_models_across_launches() {
         .with_hidden_layers(3)
         .with_width(40)
         .with_guidance(1);
-    let weights = GeneratorWeights::random(&config);
+    let weights = GeneratorWeights::random(&config, 0);
     let field = LatentField::hashed(9, 3, 4)
         .with_sigma(0.3)
         .periodic(&[3, 4, 5]);

@@ -312,7 +312,7 @@ fn full_disk_loses_nothing() {
         .with_width(8)
         .with_crop(16);
     let mut model = Checkpoint::new();
-    ipfn::generator::GeneratorWeights::random(&config).write_to(&config, &mut model);
+    ipfn::generator::GeneratorWeights::random(&config, 0).write_to(&config, &mut model);
     model.save(&d.join("vol.ipfn")).unwrap();
     let script = r#"
         set -u

@@ -18,7 +18,7 @@ fn model_3d() -> (GeneratorConfig, GeneratorWeights) {
         .with_hidden_layers(3)
         .with_width(24)
         .with_crop(32);
-    let mut weights = GeneratorWeights::random(&config);
+    let mut weights = GeneratorWeights::random(&config, 0);
     // Centre the output on 0, so the volume has a zero level set to mesh.
     let probe = Synth::new(config.clone(), weights.clone())
         .seed(0)
@@ -413,7 +413,7 @@ fn synth_depth_writes_a_volume_and_refuses_mismatches() {
     );
     let dense = config.clone().with_guidance(1);
     let mut ckpt = Checkpoint::new();
-    GeneratorWeights::random(&dense).write_to(&dense, &mut ckpt);
+    GeneratorWeights::random(&dense, 1).write_to(&dense, &mut ckpt);
     ckpt.save(&d.join("dense.ipfn")).unwrap();
     assert_error(
         &ipfn(d, &["synth", "--model", "dense.ipfn", "--depth", "4"]),

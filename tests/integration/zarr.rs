@@ -78,7 +78,7 @@ fn save_model_3d(dir: &Path) -> PathBuf {
         .with_hidden_layers(2)
         .with_width(16)
         .with_crop(32);
-    let weights = GeneratorWeights::random(&config);
+    let weights = GeneratorWeights::random(&config, 0);
     let mut ckpt = Checkpoint::new();
     weights.write_to(&config, &mut ckpt);
     std::fs::create_dir_all(dir.join("models")).unwrap();

@@ -48,14 +48,14 @@ pub fn formats(dir: &Path) -> Vec<Format> {
         .with_width(8)
         .with_crop(16);
     let mut model = ipfn::checkpoint::Checkpoint::new();
-    ipfn::generator::GeneratorWeights::random(&config).write_to(&config, &mut model);
+    ipfn::generator::GeneratorWeights::random(&config, 0).write_to(&config, &mut model);
     let model_bytes = model.to_bytes();
     let image_model = {
         let config = ipfn::generator::GeneratorConfig::new()
             .with_hidden_layers(2)
             .with_width(8);
         let mut m = ipfn::checkpoint::Checkpoint::new();
-        ipfn::generator::GeneratorWeights::random(&config).write_to(&config, &mut m);
+        ipfn::generator::GeneratorWeights::random(&config, 1).write_to(&config, &mut m);
         m.to_bytes()
     };
     let run_state = {

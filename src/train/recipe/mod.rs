@@ -388,8 +388,8 @@ mod tests {
         // Honeycomb cells 59.5 px across (two rows 104 px down): the 32 px crop holds a cell at
         // scale 0.5 (32 / 59.5 = 0.54, down to a step of 0.05).
         assert_eq!(cell_scale(&with(104.0, 59.5), 32), Some(0.5));
-        // Bricks 135 px long, two courses 40 px: the shorter period sets it.
-        assert_eq!(cell_scale(&with(40.1, 135.0), 32), Some(0.75));
+        // Bricks 160 px long, two courses 40 px: the shorter period sets it.
+        assert_eq!(cell_scale(&with(40.1, 159.7), 32), Some(0.75));
         // A crop that holds the period already, or no period: the exemplar's own scale.
         assert_eq!(cell_scale(&with(20.0, 30.0), 32), None);
         assert_eq!(cell_scale(&measured([None, None]), 32), None);
