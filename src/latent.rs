@@ -427,6 +427,12 @@ pub fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// Uniform in [0, 1) from a seed and counters: the top 24 bits of [`derive_seed`], so every
+/// random draw of the project is a pure function of where it is made.
+pub fn unit_uniform(seed: u64, counters: &[u64]) -> f32 {
+    (derive_seed(seed, counters) >> 40) as f32 / 16_777_216.0
+}
+
 /// A seed derived from a parent seed and a stream of counters (for per-sample fields).
 pub fn derive_seed(parent: u64, counters: &[u64]) -> u64 {
     counters

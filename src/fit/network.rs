@@ -113,8 +113,7 @@ pub fn half_band(lower: usize, upper: usize, count: usize, seed: u64) -> Vec<[i3
 
 /// A uniform value in `[-bound, bound)` from a hash of `(seed, index)`.
 fn uniform(seed: u64, index: u64, bound: f32) -> f32 {
-    let unit = (derive_seed(seed, &[index]) >> 40) as f32 / (1u64 << 24) as f32;
-    (2.0 * unit - 1.0) * bound
+    (2.0 * crate::latent::unit_uniform(seed, &[index]) - 1.0) * bound
 }
 
 impl PeriodicNet {

@@ -319,8 +319,7 @@ impl GeneratorWeights {
             let bound = (layer.inputs as f32).sqrt().recip();
             let values = layer.weight.iter_mut().chain(&mut layer.bias);
             for (i, v) in values.enumerate() {
-                let unit = (crate::latent::derive_seed(seed, &[l as u64, i as u64]) >> 40) as f32
-                    / 16_777_216.0;
+                let unit = crate::latent::unit_uniform(seed, &[l as u64, i as u64]);
                 *v = (2.0 * unit - 1.0) * bound;
             }
         }

@@ -6,7 +6,7 @@ use burn::module::{Module, ParamId};
 use burn::prelude::*;
 
 use crate::checkpoint::{MapByPath, map_by_path};
-use crate::latent::{derive_seed, mix64};
+use crate::latent::mix64;
 
 /// Purposes of random draws, so no two share a stream.
 pub mod stream {
@@ -31,10 +31,7 @@ pub mod stream {
     pub const INIT_COARSE_CRITIC: u64 = 17;
 }
 
-/// Uniform in [0, 1) from a seed and counters.
-pub(crate) fn uniform(seed: u64, counters: &[u64]) -> f32 {
-    (derive_seed(seed, counters) >> 40) as f32 / 16_777_216.0
-}
+pub(crate) use crate::latent::unit_uniform as uniform;
 
 /// Re-initialises every float parameter except the generator's K with PyTorch's default
 /// uniform(-1/sqrt(fan_in), 1/sqrt(fan_in)), from hashed draws.
