@@ -10,10 +10,10 @@
 //! generator's loss adds both critics' scores, so the fine critic keeps the detail and the
 //! coarse one the layout. A stride that makes the coarse crop span two to four of the pattern's
 //! periods is the intent. It is off by default (`coarse_stride = 0`): at equal time it has not
-//! yet beaten a working scale at which the fine crop holds one whole period
-//! ([`super::recipe::cell_scale`]), nor on both measures where the rows alternate, with K on
-//! two courses (the recipe suggests it there: [`super::recipe::alternating_rows`]); the
-//! book's experiments have the figures.
+//! beaten a working scale at which the fine crop holds one whole period
+//! ([`super::recipe::cell_scale`]). Where the rows alternate, the recipe turns it on with K
+//! held on two courses ([`super::recipe::alternating_rows`]): only that pair paints a running
+//! bond.
 
 use super::Trainer;
 use super::adam::Adam;

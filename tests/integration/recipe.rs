@@ -191,11 +191,11 @@ fn a_crop_holds_a_whole_cell_of_a_periodic_photo() {
     assert!(!err.contains("less than one period"), "{err}");
 }
 
-/// A running bond (each course's joints halfway between the last one's): the recipe suggests
-/// the coarse critic over three courses with K on the two after which it repeats, leaves the
-/// run's settings as they were, and the suggestion runs as printed.
+/// A running bond (each course's joints halfway between the last one's): the recipe trains it
+/// with K held on the two courses after which it repeats and the coarse critic over three, and
+/// a run that sets any of those keys keeps its own.
 #[test]
-fn alternating_rows_suggest_the_coarse_critic_with_k_on_two_courses() {
+fn alternating_rows_train_with_k_held_on_two_courses_and_the_coarse_critic() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     // 48x16 bricks with 2-px mortar, every other course shifted by half a brick.
@@ -210,24 +210,18 @@ fn alternating_rows_suggest_the_coarse_critic_with_k_on_two_courses() {
         |out: &str, config: &str, extra: &[&str]| train_once(d, "bond.png", config, out, extra);
     let (err, config) = train("runs/bond", "tiny.toml", &[]);
     // Courses of 16 px at scale 1 and 32-px crops: three courses are 48 px, a stride of 2.
-    let said = "the rows alternate: to let a critic see the joints move from course to course, try --coarse-stride 2";
-    assert!(err.contains(said), "{err}");
-    assert_eq!((config.coarse_stride, config.k_init), (0, None), "{err}");
+    assert!(
+        err.contains("the rows alternate: K held on two courses"),
+        "{err}"
+    );
+    assert!(err.contains("(--coarse-stride 2)"), "{err}");
+    assert_eq!((config.coarse_stride, config.k_lr), (2, 0.0), "{err}");
     // K down on two courses (32 px: one crop); across, an octave on the period measured there.
-    let k = err.split("with k_init = [").nth(1).unwrap();
-    let k: Vec<f32> = k[..k.find(']').unwrap()]
-        .split(", ")
-        .map(|v| v.parse().unwrap())
-        .collect();
+    let k = config.k_init.clone().expect("K is set");
     assert!((k[0] - 1.0).abs() < 0.05 && k[1] > 0.5, "{k:?}");
-    assert!(err.contains("] and k_lr = 0 (K held)"), "{err}");
-    let with_k = format!("{TINY}k_init = [{}, {}]\nk_lr = 0.0\n", k[0], k[1]);
-    std::fs::write(d.join("k.toml"), with_k).unwrap();
-    let (err, config) = train("runs/tried", "k.toml", &["--coarse-stride", "2"]);
-    assert!(!err.contains("the rows alternate: to let"), "{err}");
-    assert_eq!((config.coarse_stride, config.k_init), (2, Some(k)));
-    assert_eq!(config.k_lr, 0.0);
-    let model = Checkpoint::load(&d.join("runs/tried/latest.ipfn")).unwrap();
+    let said = format!("k_init = [{:.3}, {:.3}], k_lr = 0", k[0], k[1]);
+    assert!(err.contains(&said), "{err}");
+    let model = Checkpoint::load(&d.join("runs/bond/latest.ipfn")).unwrap();
     assert!(
         model
             .tensors
@@ -235,6 +229,11 @@ fn alternating_rows_suggest_the_coarse_critic_with_k_on_two_courses() {
             .any(|k| k.starts_with("coarse_critic.")),
         "the coarse critic is saved"
     );
+    // A run that sets one of the three keys keeps K free and no coarse critic.
+    let (err, config) = train("runs/own", "tiny.toml", &["--coarse-stride", "0"]);
+    assert!(!err.contains("the rows alternate: K held"), "{err}");
+    assert_eq!((config.coarse_stride, config.k_init), (0, None), "{err}");
+    assert_ne!(config.k_lr, 0.0);
 }
 
 #[test]

@@ -4,12 +4,14 @@
 //! equal), trains a gray photo as gray, and says what it measured. Every choice is a config
 //! key: keys given in a config file or as flags are kept as given.
 //!
-//! Two choices come from the period:
+//! Three choices come from the period:
 //! - a periodic plain image trains at the working scale at which a fine crop holds one whole
 //!   period of its shorter clear period ([`cell_scale`]): a crop smaller than one cell cannot
 //!   learn the cell's shape, and the generator then paints a grid of crop-sized blobs;
 //!   (a run that sets its own scale and leaves the crop is told when the crop holds less than
 //!   one period, and which `--crop` holds one);
+//! - a plain image whose rows alternate (a running bond) trains with K held on the two courses
+//!   after which it repeats and a coarse critic over about three ([`alternating_rows`]);
 //! - a plain image with no clear period on either axis trains with the diversity hinge
 //!   ([`NO_PERIOD_DIVERSITY`], [`super::diversity`]), which keeps its samples from repeating as
 //!   a grid. A periodic exemplar keeps the paper's loss: its crops and their twins at the same
@@ -17,16 +19,16 @@
 //!
 //! Built, measured and not made by default (the book's experiments have the figures): a scale
 //! at which the crop holds two of the longer periods, the initial K from the period
-//! ([`initial_k`]; printed, and `k_init` sets it), K from the exemplar's extent where it has no
-//! clear period, and the coarse critic ([`super::coarse`]), on its own and, where the rows
-//! alternate, with K on two courses ([`alternating_rows`]; printed as a suggestion).
+//! ([`initial_k`]; printed, and `k_init` sets it) where the rows do not alternate, K from the
+//! exemplar's extent where it has no clear period, and the coarse critic ([`super::coarse`])
+//! on its own.
 
 use std::collections::BTreeSet;
 
 mod rows;
 
 pub use rows::{COARSE_PERIODS, alternating_rows};
-use rows::{staggered, suggest_alternating_rows};
+use rows::{apply_alternating_rows, staggered};
 
 use super::TrainConfig;
 use crate::exemplar::Exemplar;
@@ -314,7 +316,7 @@ pub fn settle(
             let measured = measure(&exemplar);
             lines.extend(apply(&measured, config, explicit, plain));
             if plain {
-                lines.extend(suggest_alternating_rows(&measured, config, explicit));
+                lines.extend(apply_alternating_rows(&measured, config, explicit));
             }
         }
         super::ExemplarSource::Maps(files) => {

@@ -1,6 +1,6 @@
 //! Alternating rows: a running bond, whose joints move by half a brick from one course to the
 //! next, repeats unshifted only after two courses. Telling it from a stack bond, and what the
-//! recipe suggests for it (K on the two courses, held, and a coarse critic over three).
+//! recipe sets for it (K on the two courses, held, and a coarse critic over three).
 
 use std::collections::BTreeSet;
 
@@ -42,10 +42,8 @@ pub const COARSE_PERIODS: f64 = 3.0;
 /// For a plain image whose rows alternate (a running bond, [`Measured::staggered`]) and whose
 /// fine crop holds less than about [`COARSE_PERIODS`] of its shorter period: the stride at
 /// which a coarse crop ([`crate::train::coarse`]) spans about [`COARSE_PERIODS`] periods, to pair with
-/// K on the lattice period ([`initial_k`]), so that the generator can tell one course from the
-/// next and a critic sees the joints move from one course to the next; K is best held there.
-/// Suggested, not applied: on one photo it has painted the bond at some seeds only, and the
-/// structure distance has not yet ranked it above the defaults (the book's experiments).
+/// K held on the lattice period ([`initial_k`]), so that the generator can tell one course from
+/// the next and a critic sees the joints move from one course to the next.
 pub fn alternating_rows(measured: &Measured, config: &TrainConfig) -> Option<usize> {
     if !measured.staggered.contains(&true) {
         return None;
@@ -61,24 +59,34 @@ pub fn alternating_rows(measured: &Measured, config: &TrainConfig) -> Option<usi
     (stride >= 2).then_some(stride)
 }
 
-/// The line that suggests [`alternating_rows`]' stride with K on the lattice period, where the
-/// run set neither.
-pub(super) fn suggest_alternating_rows(
+/// The keys [`apply_alternating_rows`] sets together; a run that sets any of them keeps all three.
+const ROW_KEYS: [&str; 3] = ["k_init", "k_lr", "coarse_stride"];
+
+/// Where the rows alternate ([`alternating_rows`]) and the run set none of [`ROW_KEYS`]: K on
+/// the lattice period, held, and the coarse critic at [`alternating_rows`]' stride. Without
+/// them the generator paints courses whose joints line up or wander; with them, the bond (the
+/// book's running-bond experiments: at four seeds of four, where the defaults painted it at
+/// none, with both measures level). Returns the line that says so.
+pub(super) fn apply_alternating_rows(
     measured: &Measured,
-    config: &TrainConfig,
+    config: &mut TrainConfig,
     explicit: &BTreeSet<String>,
 ) -> Option<String> {
-    if explicit.contains("k_init") || explicit.contains("coarse_stride") {
+    if ROW_KEYS.iter().any(|k| explicit.contains(*k)) {
         return None;
     }
     let stride = alternating_rows(measured, config)?;
     let k = initial_k(measured, config.resize, config.crop, config.octaves);
-    Some(format!(
-        "the rows alternate: to let a critic see the joints move from course to course, try --coarse-stride {stride} (crops of {} px, about {COARSE_PERIODS} periods) with k_init = [{:.3}, {:.3}] and k_lr = 0 (K held) in a --config file (half the iterations; not a default: see the guide's Structure section)",
-        stride * config.crop,
+    let line = format!(
+        "the rows alternate: K held on two courses (k_init = [{:.3}, {:.3}], k_lr = 0) and a coarse critic on crops of {} px, about {COARSE_PERIODS} periods (--coarse-stride {stride}), so a critic sees the joints move from course to course (half the iterations; setting k_init, k_lr or coarse_stride leaves all three to the run)",
         k[0],
-        k[1]
-    ))
+        k[1],
+        stride * config.crop,
+    );
+    config.k_init = Some(k);
+    config.k_lr = 0.0;
+    config.coarse_stride = stride;
+    Some(line)
 }
 
 #[cfg(test)]
@@ -121,7 +129,7 @@ mod tests {
     }
 
     #[test]
-    fn alternating_rows_suggest_a_coarse_critic_over_three_courses() {
+    fn alternating_rows_hold_k_on_two_courses_with_a_coarse_critic_over_three() {
         // brick.jpg as measured: courses 40.1 px, bricks 159.7 px, at the CPU's scale and crop.
         let brick = Measured {
             size: [640, 640],
@@ -134,8 +142,10 @@ mod tests {
             ..TrainConfig::default()
         };
         assert_eq!(alternating_rows(&brick, &cpu), Some(3));
-        let line = suggest_alternating_rows(&brick, &cpu, &BTreeSet::new()).unwrap();
-        assert!(line.contains("--coarse-stride 3 (crops of 96 px"), "{line}");
+        let mut config = cpu.clone();
+        let line = apply_alternating_rows(&brick, &mut config, &BTreeSet::new()).unwrap();
+        assert!(line.contains("crops of 96 px"), "{line}");
+        assert!(line.contains("(--coarse-stride 3)"), "{line}");
         let k = initial_k(&brick, 0.75, 32, cpu.octaves);
         let k_init = format!("k_init = [{:.3}, {:.3}]", k[0], k[1]);
         assert!(line.contains(&k_init), "{line}");
@@ -143,10 +153,16 @@ mod tests {
             (k[0] - 1.88).abs() < 0.01 && (k[1] - 3.74).abs() < 0.01,
             "{k:?}"
         );
-        // A run that set either key hears nothing more.
-        for key in ["k_init", "coarse_stride"] {
+        assert_eq!(
+            (config.k_init, config.k_lr, config.coarse_stride),
+            (Some(k), 0.0, 3)
+        );
+        // A run that set any of the three keys keeps all three as they were.
+        for key in ROW_KEYS {
             let explicit = BTreeSet::from([key.to_string()]);
-            assert_eq!(suggest_alternating_rows(&brick, &cpu, &explicit), None);
+            let mut config = cpu.clone();
+            assert_eq!(apply_alternating_rows(&brick, &mut config, &explicit), None);
+            assert_eq!(config, cpu);
         }
         // Rows that do not alternate, and a crop that already spans about three courses.
         let stack = Measured {
