@@ -65,8 +65,7 @@ const ROW_KEYS: [&str; 3] = ["k_init", "k_lr", "coarse_stride"];
 /// Where the rows alternate ([`alternating_rows`]) and the run set none of [`ROW_KEYS`]: K on
 /// the lattice period, held, and the coarse critic at [`alternating_rows`]' stride. Without
 /// them the generator paints courses whose joints line up or wander; with them, the bond (the
-/// book's running-bond experiments: at four seeds of four, where the defaults painted it at
-/// none, with both measures level). Returns the line that says so.
+/// book's running-bond experiments). Returns the line that says so.
 pub(super) fn apply_alternating_rows(
     measured: &Measured,
     config: &mut TrainConfig,
