@@ -26,21 +26,13 @@ impl PixelGrid {
         ((i as f64 + 0.5) * self.spacing) as f32
     }
 
-    /// Writes the coordinates of `count` consecutive points of the box of `shape` whose first
-    /// pixel is `origin` (both in array order, 2 or 3 axes), starting at flat index `start`
-    /// (row-major), into `out` (`[count, axes]`).
-    pub fn coordinates(
-        &self,
-        origin: &[i64],
-        shape: &[usize],
-        start: usize,
-        count: usize,
-        out: &mut Vec<f32>,
-    ) {
+    /// Writes the coordinates of `points` into `out` (`[count, axes]`).
+    pub fn coordinates(&self, points: BoxPoints, out: &mut Vec<f32>) {
+        let (origin, shape) = (points.origin, points.shape);
         let axes = shape.len();
         out.clear();
-        out.reserve(count * axes);
-        for flat in start..start + count {
+        out.reserve(points.count * axes);
+        for flat in points.start..points.start + points.count {
             let mut rest = flat;
             let at = out.len();
             out.resize(at + axes, 0.0);
@@ -51,6 +43,16 @@ impl PixelGrid {
             }
         }
     }
+}
+
+/// `count` consecutive points of the box of `shape` whose first pixel is `origin` (both in
+/// array order, 2 or 3 axes), from flat index `start` (row-major).
+#[derive(Debug, Clone, Copy)]
+pub struct BoxPoints<'a> {
+    pub origin: &'a [i64],
+    pub shape: &'a [usize],
+    pub start: usize,
+    pub count: usize,
 }
 
 /// A training crop's grid: pixel `i` of a `crop`-pixel crop lies at `-1 + (i + 0.5) * 2 / crop`

@@ -93,6 +93,39 @@ fn same_masks(a: &[Tensor<5>], b: &[Tensor<5>]) -> bool {
         .all(|(x, y)| x.clone().equal(y.clone()).all().into_scalar::<bool>())
 }
 
+/// Central differences against an analytic gradient: how many were checked, and the worst
+/// relative error.
+#[derive(Default)]
+struct Tally {
+    checked: usize,
+    worst: f32,
+}
+
+impl Tally {
+    /// Counts the difference `(plus - minus) / 2h` against `analytic`, relative to
+    /// `|analytic|` but at least `floor`.
+    fn add(&mut self, [plus, minus]: [f32; 2], h: f32, analytic: f32, floor: f32) {
+        let fd = (plus - minus) / (2.0 * h);
+        self.worst = self
+            .worst
+            .max((fd - analytic).abs() / analytic.abs().max(floor));
+        self.checked += 1;
+    }
+
+    fn assert_within(&self, what: &str, min_checked: usize, tolerance: f32) {
+        let Tally { checked, worst } = self;
+        eprintln!("{what}: checked {checked}, worst {worst:e}");
+        assert!(
+            *checked >= min_checked,
+            "{what}: too few checked ({checked})"
+        );
+        assert!(
+            *worst < tolerance,
+            "{what} differs from finite differences by {worst} (relative)"
+        );
+    }
+}
+
 fn input_gradient_matches_finite_differences(case: Case) {
     let device = Device::flex();
     let critic = case.critic(&device);
@@ -111,7 +144,7 @@ fn input_gradient_matches_finite_differences(case: Case) {
         )
     };
     let h = 1e-2;
-    let (mut checked, mut worst) = (0, 0f32);
+    let mut tally = Tally::default();
     for k in (0..base.len()).step_by(case.input_stride) {
         let (mut plus, mut minus) = (base.clone(), base.clone());
         plus[k] += h;
@@ -120,21 +153,10 @@ fn input_gradient_matches_finite_differences(case: Case) {
         if !same_masks(&mp, &masks) || !same_masks(&mm, &masks) {
             continue;
         }
-        let fd = (dp - dm) / (2.0 * h);
-        let err = (fd - analytic[k]).abs() / analytic[k].abs().max(1e-2);
-        worst = worst.max(err);
-        checked += 1;
+        tally.add([dp, dm], h, analytic[k], 1e-2);
     }
-    eprintln!("{}D dD/dx: checked {checked}, worst {worst:e}", case.axes);
-    assert!(
-        checked >= case.min_inputs_checked,
-        "too few coordinates checked ({checked})"
-    );
-    assert!(
-        worst < 5e-3,
-        "{}D dD/dx differs from finite differences by {worst} (relative)",
-        case.axes
-    );
+    let what = format!("{}D dD/dx", case.axes);
+    tally.assert_within(&what, case.min_inputs_checked, 5e-3);
 }
 
 /// The analytic gradient of the penalty with respect to every checked weight tensor.
@@ -201,7 +223,7 @@ fn penalty_weight_gradient_matches_finite_differences(case: Case) {
         (p.into_scalar::<f32>(), x_hat_masks(&c))
     };
     let h = case.weight_step;
-    let (mut checked, mut worst) = (0, 0f32);
+    let mut tally = Tally::default();
     for (name, grad) in &analytic.tensors {
         for k in (0..grad.values.len()).step_by(grad.values.len() / 6 + 1) {
             let (mut plus, mut minus) = (weights.clone(), weights.clone());
@@ -211,23 +233,11 @@ fn penalty_weight_gradient_matches_finite_differences(case: Case) {
             if !same_masks(&mp, &base_masks) || !same_masks(&mm, &base_masks) {
                 continue;
             }
-            let fd = (pp - pm) / (2.0 * h);
-            let a = grad.values[k];
-            let err = (fd - a).abs() / a.abs().max(1e-1);
-            worst = worst.max(err);
-            checked += 1;
+            tally.add([pp, pm], h, grad.values[k], 1e-1);
         }
     }
-    eprintln!("{}D dP/dW: checked {checked}, worst {worst:e}", case.axes);
-    assert!(
-        checked >= case.min_weights_checked,
-        "too few weights checked ({checked})"
-    );
-    assert!(
-        worst < 1e-2,
-        "{}D d(penalty)/dW differs from finite differences by {worst} (relative)",
-        case.axes
-    );
+    let what = format!("{}D d(penalty)/dW", case.axes);
+    tally.assert_within(&what, case.min_weights_checked, 1e-2);
 }
 
 #[test]

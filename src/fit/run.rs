@@ -106,8 +106,11 @@ pub struct Fitter {
     device: Option<burn::tensor::Device>,
 }
 
-/// The photo (or stacked maps), its map set and its mask, as `config` names them.
-fn load_inputs(config: &FitConfig) -> Result<(Exemplar, Option<MapSet>, Option<Vec<f32>>)> {
+/// The photo (or stacked maps), its map set and its mask.
+type Inputs = (Exemplar, Option<MapSet>, Option<Vec<f32>>);
+
+/// The [`Inputs`] `config` names.
+fn load_inputs(config: &FitConfig) -> Result<Inputs> {
     let (photo, maps) = match (&config.photo, &config.maps) {
         (Some(path), _) => (crate::exemplar::read_exemplar(path)?, None),
         (None, Some(files)) => {
@@ -169,13 +172,30 @@ impl Fitter {
         std::fs::create_dir_all(run_dir)
             .map_err(|e| crate::file_error!(&run_dir, "cannot create: {e}"))?;
         let lock = RunLock::acquire(run_dir)?;
+        Ok(Self::fresh(
+            config,
+            (photo, maps, mask),
+            run_dir,
+            lock,
+            device,
+        ))
+    }
+
+    /// A fit at its first step: the network as initialised, stage 0.
+    fn fresh(
+        config: FitConfig,
+        (photo, maps, mask): Inputs,
+        run_dir: &Path,
+        lock: RunLock,
+        device: Option<burn::tensor::Device>,
+    ) -> Self {
         let shape = config.shape(
             config.period_for([photo.height, photo.width]),
             photo.channels,
         );
         let net = PeriodicNet::init(shape, config.seed);
         let adam = FlatAdam::new(net.params[0].len());
-        Ok(Self {
+        Self {
             config,
             net,
             stage: 0,
@@ -188,7 +208,7 @@ impl Fitter {
             _lock: lock,
             target: None,
             device,
-        })
+        }
     }
 
     /// The fit saved in `run_dir`'s `latest.ipfn`, exactly where it stopped.
@@ -211,34 +231,23 @@ impl Fitter {
         };
         let config: FitConfig = serde_json::from_str(checkpoint.meta(CONFIG_KEY)?)
             .map_err(|e| input_error!("{file}: not a fit's state ({e})"))?;
-        let (photo, maps, mask) = load_inputs(&config)?;
-        if number(FINGERPRINT_KEY)? != photo.fingerprint() {
+        let inputs = load_inputs(&config)?;
+        if number(FINGERPRINT_KEY)? != inputs.0.fingerprint() {
             return Err(input_error!(
                 "{file}: the photo has changed since this fit started; start a new fit with `ipfn fit PHOTO --run DIR`"
             ));
         }
-        let net = PeriodicNet::read_from(&checkpoint)?;
-        let stage = number(STAGE_KEY)? as usize;
-        let n = net.params.get(stage).map_or(0, Vec::len);
-        let adam = FlatAdam {
+        let mut fit = Self::fresh(config, inputs, run_dir, lock, device);
+        fit.net = PeriodicNet::read_from(&checkpoint)?;
+        fit.stage = number(STAGE_KEY)? as usize;
+        let n = fit.net.params.get(fit.stage).map_or(0, Vec::len);
+        fit.adam = FlatAdam {
             m: checkpoint.tensor("adam.m", &[n])?.to_vec(),
             v: checkpoint.tensor("adam.v", &[n])?.to_vec(),
             steps: number(ITERATION_KEY)?,
         };
-        Ok(Self {
-            iteration: adam.steps,
-            config,
-            net,
-            stage,
-            adam,
-            photo,
-            mask,
-            maps,
-            run_dir: run_dir.to_path_buf(),
-            _lock: lock,
-            target: None,
-            device,
-        })
+        fit.iteration = fit.adam.steps;
+        Ok(fit)
     }
 
     pub fn run_dir(&self) -> &Path {

@@ -25,19 +25,7 @@ pub struct SynthPlan {
 }
 
 pub(super) enum Target {
-    Image {
-        painter: Painter,
-        size: [usize; 2],
-        outputs: Vec<MapOutput>,
-        names: Vec<String>,
-    },
-    Tile {
-        painter: TilePainter,
-        origin: [i64; 2],
-        size: [usize; 2],
-        outputs: Vec<MapOutput>,
-        names: Vec<String>,
-    },
+    Image(ImageTarget),
     Slice {
         painter: Painter,
         origin: [i64; 3],
@@ -54,6 +42,66 @@ pub(super) enum Target {
     },
 }
 
+/// An image (or a map set's images) of `size` from `origin`, by a trained model or a fitted
+/// tile.
+pub(super) struct ImageTarget {
+    pub painter: ImagePainter,
+    pub origin: [i64; 2],
+    pub size: [usize; 2],
+    pub outputs: Vec<MapOutput>,
+    pub names: Vec<String>,
+}
+
+impl ImageTarget {
+    /// The bands the outputs are written from.
+    fn bands(&self) -> crate::maps::Bands<'_> {
+        self.painter.bands(&self.outputs, self.size)
+    }
+
+    /// The image's `rows` rows from row `row`.
+    fn render_rows(&self, row: usize, rows: usize) -> Vec<f32> {
+        let [top, left] = self.origin;
+        self.painter
+            .render([top + row as i64, left], [rows, self.size[1]])
+    }
+}
+
+/// What paints an image: a trained model's painter (whose samples are endless), or a fitted
+/// tile's (periodic, its values clamped to the exemplar's range).
+#[allow(clippy::large_enum_variant)] // one per synthesis: boxing would save nothing
+pub(super) enum ImagePainter {
+    Model(Painter),
+    Tile(TilePainter),
+}
+
+impl ImagePainter {
+    fn channels(&self) -> usize {
+        match self {
+            ImagePainter::Model(p) => p.channels(),
+            ImagePainter::Tile(p) => p.net.shape.channels,
+        }
+    }
+
+    /// `size` pixels (rows, columns) from `origin`, row-major.
+    fn render(&self, origin: [i64; 2], size: [usize; 2]) -> Vec<f32> {
+        match self {
+            ImagePainter::Model(p) => p.render(&origin, &size),
+            ImagePainter::Tile(p) => p.render(origin, size),
+        }
+    }
+
+    /// The bands `outputs` are written from, `size` pixels from `origin`.
+    fn bands<'a>(&self, outputs: &'a [MapOutput], size: [usize; 2]) -> crate::maps::Bands<'a> {
+        crate::maps::Bands {
+            outputs,
+            channels: self.channels(),
+            size,
+            band_pixels: DEFAULT_BAND_PIXELS,
+            clamp: matches!(self, ImagePainter::Tile(_)),
+        }
+    }
+}
+
 /// One painted array: `shape` is `[H, W, C]` (`[D, H, W, C]` for a volume), row-major; `name`
 /// is the map's name for a map set.
 #[derive(Debug, Clone)]
@@ -68,10 +116,17 @@ impl SynthPlan {
     pub fn header(&self) -> Vec<String> {
         let mut lines = vec![format!("model: {}", self.model)];
         match &self.target {
-            Target::Image { painter, .. } | Target::Volume { painter, .. } => {
+            Target::Image(ImageTarget {
+                painter: ImagePainter::Model(painter),
+                ..
+            })
+            | Target::Volume { painter, .. } => {
                 lines.extend(painter.tile_adjustment().map(|t| t.describe()));
             }
-            Target::Tile { painter, .. } => {
+            Target::Image(ImageTarget {
+                painter: ImagePainter::Tile(painter),
+                ..
+            }) => {
                 let [rows, cols] = painter.resolution;
                 lines[0] = format!(
                     "model: {} (a periodic tile, {cols}x{rows} per period, level of detail {})",
@@ -86,7 +141,7 @@ impl SynthPlan {
     /// Rows painted in all, for a progress bar (images and tiles; 0 for volumes and slices).
     pub fn rows(&self) -> usize {
         match &self.target {
-            Target::Image { size, .. } | Target::Tile { size, .. } => size[0],
+            Target::Image(image) => image.size[0],
             _ => 0,
         }
     }
@@ -94,7 +149,7 @@ impl SynthPlan {
     /// Pixels painted (voxels for a volume).
     pub fn pixels(&self) -> usize {
         match &self.target {
-            Target::Image { size, .. } | Target::Tile { size, .. } => size[0] * size[1],
+            Target::Image(image) => image.size[0] * image.size[1],
             Target::Slice { image, .. } => image[0] * image[1],
             Target::Volume { shape, .. } => shape.iter().product(),
         }
@@ -104,33 +159,9 @@ impl SynthPlan {
     /// aside), value for value what a `.npy` output holds.
     pub fn render(&self) -> Result<Vec<Painted>> {
         match &self.target {
-            Target::Image {
-                painter,
-                size,
-                outputs,
-                names,
-            } => collect_bands(
-                outputs,
-                names,
-                painter.channels(),
-                *size,
-                false,
-                |row, rows| painter.render(&[row as i64, 0], &[rows, size[1]]),
-            ),
-            Target::Tile {
-                painter,
-                origin,
-                size,
-                outputs,
-                names,
-            } => collect_bands(
-                outputs,
-                names,
-                painter.net.shape.channels,
-                *size,
-                true,
-                |row, rows| painter.render([origin[0] + row as i64, origin[1]], [rows, size[1]]),
-            ),
+            Target::Image(image) => collect_bands(image.bands(), &image.names, |row, rows| {
+                image.render_rows(row, rows)
+            }),
             Target::Slice {
                 painter,
                 origin,
@@ -157,8 +188,8 @@ impl SynthPlan {
             crate::io::check_destination(path)?;
         }
         match &self.target {
-            Target::Image { size, outputs, .. } | Target::Tile { size, outputs, .. } => {
-                crate::maps::check_outputs(outputs, size[1], size[0])
+            Target::Image(image) => {
+                crate::maps::check_outputs(&image.outputs, image.size[1], image.size[0])
             }
             Target::Slice { .. } => crate::io::check_destination(&self.out).map(drop),
             Target::Volume { mesh, .. } => {
@@ -192,18 +223,9 @@ impl SynthPlan {
     /// writes its material lit ([`preview`]). Returns its size.
     fn write_preview(&self, path: &Path, set: &MapSet) -> Result<[usize; 2]> {
         let (values, region) = match &self.target {
-            Target::Image { painter, size, .. } => {
-                let region = preview::region(*size);
-                (painter.render(&[0, 0], &region), region)
-            }
-            Target::Tile {
-                painter,
-                origin,
-                size,
-                ..
-            } => {
-                let region = preview::region(*size);
-                (painter.render(*origin, region), region)
+            Target::Image(image) => {
+                let region = preview::region(image.size);
+                (image.painter.render(image.origin, region), region)
             }
             _ => unreachable!("the request gives a preview to images and tiles only"),
         };
@@ -215,35 +237,18 @@ impl SynthPlan {
         self.check_destinations()?;
         let out = self.out.display();
         match &self.target {
-            Target::Image {
-                painter,
-                size,
-                outputs,
-                ..
-            } => {
-                painter.write_maps(outputs, *size, DEFAULT_BAND_PIXELS, progress)?;
+            Target::Image(image) => {
+                let rows = |row, rows| image.render_rows(row, rows);
+                image.bands().write(rows, progress)?;
+                // A tile is the same for every seed.
+                let seed = match image.painter {
+                    ImagePainter::Model(_) => format!(", seed {}", self.seed),
+                    ImagePainter::Tile(_) => String::new(),
+                };
+                let [height, width] = image.size;
                 Ok(format!(
-                    "wrote {} ({}x{}, seed {}, {:?})",
-                    paths(outputs),
-                    size[1],
-                    size[0],
-                    self.seed,
-                    self.device
-                ))
-            }
-            Target::Tile {
-                painter,
-                origin,
-                size,
-                outputs,
-                ..
-            } => {
-                painter.write(outputs, *origin, *size, DEFAULT_BAND_PIXELS)?;
-                Ok(format!(
-                    "wrote {} ({}x{}, {:?})",
-                    paths(outputs),
-                    size[1],
-                    size[0],
+                    "wrote {} ({width}x{height}{seed}, {:?})",
+                    paths(&image.outputs),
                     self.device
                 ))
             }
@@ -325,13 +330,12 @@ fn paths(outputs: &[MapOutput]) -> String {
 
 /// The bands of [`crate::maps::Bands`] gathered into one array per output.
 fn collect_bands(
-    outputs: &[MapOutput],
+    bands: crate::maps::Bands,
     names: &[String],
-    channels: usize,
-    [height, width]: [usize; 2],
-    clamp: bool,
     render: impl Fn(usize, usize) -> Vec<f32>,
 ) -> Result<Vec<Painted>> {
+    let [height, width] = bands.size;
+    let outputs = bands.outputs;
     let mut painted: Vec<Painted> = outputs
         .iter()
         .enumerate()
@@ -341,13 +345,6 @@ fn collect_bands(
             values: Vec::with_capacity(height * width * o.channels.len()),
         })
         .collect();
-    let bands = crate::maps::Bands {
-        outputs,
-        channels,
-        size: [height, width],
-        band_pixels: DEFAULT_BAND_PIXELS,
-        clamp,
-    };
     bands.for_each(
         render,
         |i, values| {

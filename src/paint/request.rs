@@ -9,7 +9,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::plan::{SynthPlan, Target};
+use super::plan::{ImagePainter, ImageTarget, SynthPlan, Target};
 use crate::condition::{DensityRamp, Guide};
 use crate::device::DeviceChoice;
 use crate::error::Result;
@@ -253,12 +253,13 @@ impl SynthRequest {
         let synth = self.image_synth(model.config.clone(), model.weights.clone(), size)?;
         let painter = synth.painter()?;
         painter.check_axes(2)?;
-        Ok(Target::Image {
-            painter,
+        Ok(Target::Image(ImageTarget {
+            painter: ImagePainter::Model(painter),
+            origin: [0, 0],
             size,
             outputs,
             names,
-        })
+        }))
     }
 
     /// The files an image (or each map of a map set) is written to, and the maps' names.
@@ -346,13 +347,13 @@ impl SynthRequest {
             lod,
             device: self.device.burn_device()?,
         };
-        Ok(Target::Tile {
-            painter,
+        Ok(Target::Image(ImageTarget {
+            painter: ImagePainter::Tile(painter),
             origin: [y, x],
             size,
             outputs,
             names,
-        })
+        }))
     }
 
     fn slice_target(

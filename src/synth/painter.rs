@@ -13,7 +13,7 @@ use crate::io::shard::Shard;
 use crate::io::zarr::{ZarrReport, ZarrWriter};
 use crate::latent::LatentField;
 use crate::maps::MapOutput;
-use crate::sample::PixelGrid;
+use crate::sample::{BoxPoints, PixelGrid};
 
 /// Default band size for [`Painter::write_image`] and volume slabs: 1 Mi pixels (12 MiB of RGB
 /// floats).
@@ -105,27 +105,20 @@ impl Painter {
         out
     }
 
-    /// The condition values of `count` points from the `start`-th point (row-major) of the box
-    /// of `shape` at `origin` (absolute); empty for an unconditioned model.
-    fn condition_values(
-        &self,
-        origin: &[i64],
-        shape: &[usize],
-        start: usize,
-        count: usize,
-        out: &mut Vec<f32>,
-    ) {
+    /// The condition values of `points` (`origin` absolute); empty for an unconditioned model.
+    fn condition_values(&self, points: BoxPoints, out: &mut Vec<f32>) {
         out.clear();
         let Some(condition) = &self.condition else {
             return;
         };
+        let (origin, shape, start) = (points.origin, points.shape, points.start);
         let n = shape.len();
         let (height, width) = (shape[n - 2], shape[n - 1]);
         let (row0, col0) = (
             origin[n - 2] - self.offset[n - 2],
             origin[n - 1] - self.offset[n - 1],
         );
-        out.extend((start..start + count).map(|k| {
+        out.extend((start..start + points.count).map(|k| {
             let row = row0 + (k / width % height) as i64;
             let col = col0 + (k % width) as i64;
             condition.at(row, col)
@@ -157,7 +150,13 @@ impl Painter {
             return self
                 .engine
                 .render_on_device(&self.field, &self.latent_scale, &axes, c, |start, count| {
-                    self.condition_values(origin, shape, start, count, &mut g);
+                    let points = BoxPoints {
+                        origin,
+                        shape,
+                        start,
+                        count,
+                    };
+                    self.condition_values(points, &mut g);
                     g.clone()
                 })
                 .expect("device engines render grids");
@@ -178,9 +177,14 @@ impl Painter {
             slice,
             chunk,
             |s, start, count, coords, condition| {
-                let start = s * slice + start;
-                self.grid.coordinates(origin, shape, start, count, coords);
-                self.condition_values(origin, shape, start, count, condition);
+                let points = BoxPoints {
+                    origin,
+                    shape,
+                    start: s * slice + start,
+                    count,
+                };
+                self.grid.coordinates(points, coords);
+                self.condition_values(points, condition);
             },
         );
         out

@@ -20,7 +20,7 @@ use crate::sample::{crop_coordinate, strided_crop_coordinate};
 /// ([`Trainer::keeps_passes`]).
 pub const KEPT_PASSES_BYTES: usize = 512 << 20;
 
-/// Points per generator evaluation when training on flex (see [`Trainer::fake_values`]).
+/// Points per generator evaluation when training on flex (see [`Trainer::fake_batch`]).
 pub const FLEX_TRAIN_CHUNK: usize = 4096;
 
 impl Trainer {
@@ -100,76 +100,19 @@ impl Trainer {
     ) -> Tensor<5> {
         let (b, s, c) = (self.config.batch, self.config.crop, self.exemplar.channels);
         let depth = if self.kind.crop_axes() == 3 { s } else { 1 };
-        let (values, conditions) = self.fake_values(generator, device, counters, draw, scale);
+        let samples = self.fake_samples(counters, draw, scale);
+        let conditions: Vec<f32> = samples.iter().flat_map(|s| s.condition.clone()).collect();
+        let values = if device.clone().inner() == Device::flex() {
+            self.values_on_flex(generator, device, &samples)
+        } else {
+            self.values_on_device(generator, device, &samples, &conditions)
+        }; // [b * points, c]
         let crops = values.reshape([b, depth, s, s, c]).permute([0, 4, 1, 2, 3]); // [b, c, depth, s, s]
         if conditions.is_empty() {
             return crops;
         }
         let g = Tensor::<5>::from_data(TensorData::new(conditions, [b, 1, depth, s, s]), device);
         Tensor::cat(vec![crops, g], 1) // [b, c + 1, depth, s, s]
-    }
-
-    /// The generator at every point of every sample, and each point's condition (empty for an
-    /// unconditioned run).
-    ///
-    /// # Shapes
-    /// - output: `[batch * points, channels]` on `device`, and `[batch * points]`
-    fn fake_values(
-        &self,
-        generator: &Generator,
-        device: &Device,
-        counters: &[u64],
-        draw: u64,
-        scale: Scale,
-    ) -> (Tensor<2>, Vec<f32>) {
-        let cfg = &self.config;
-        let (b, ld) = (cfg.batch, cfg.latent_dim);
-        let conditioned = self.kind.conditioned() as usize;
-        let zw = ld + conditioned; // generator input after the encoding: latent, then g
-        let (n, dims) = (self.crop_points(), self.kind.generator_axes());
-        if device.clone().inner() != Device::flex() {
-            return self.fake_values_on_device(generator, device, counters, draw, scale);
-        }
-        let mut coords = vec![0f32; b * n * dims];
-        let mut latent = vec![0f32; b * n * zw];
-        let mut conditions = vec![0f32; b * n * conditioned];
-        coords
-            .par_chunks_mut(n * dims)
-            .zip(latent.par_chunks_mut(n * zw))
-            .enumerate()
-            .for_each(|(s, (p, z))| {
-                let (sample, field) = self.sample_coordinates(s, counters, draw, scale);
-                p.copy_from_slice(&sample);
-                let u: Vec<f32> = p.iter().map(|v| v * cfg.latent_scale).collect();
-                if conditioned == 0 {
-                    field.fill(&u, z);
-                    return;
-                }
-                let g = self.fake_condition(s, counters, scale);
-                let mut zs = vec![0f32; n * ld];
-                field.fill(&u, &mut zs);
-                for q in 0..n {
-                    z[q * zw..q * zw + ld].copy_from_slice(&zs[q * ld..(q + 1) * ld]);
-                    z[q * zw + ld] = g[q];
-                }
-            });
-        if conditioned == 1 {
-            for (s, out) in conditions.chunks_mut(n).enumerate() {
-                out.copy_from_slice(&self.fake_condition(s, counters, scale));
-            }
-        }
-        let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, dims]), device);
-        let z = Tensor::<2>::from_data(TensorData::new(latent, [b * n, zw]), device);
-        // The MLP in chunks of FLEX_TRAIN_CHUNK points, so each layer's activations (and, in
-        // the backward pass, their gradients) stay in cache; the weight gradients sum over
-        // the chunks.
-        let values: Vec<Tensor<2>> = p
-            .split(FLEX_TRAIN_CHUNK, 0)
-            .into_iter()
-            .zip(z.split(FLEX_TRAIN_CHUNK, 0))
-            .map(|(p, z)| generator.forward(p, z)) // [chunk, c]
-            .collect();
-        (Tensor::cat(values, 0), conditions) // [b * n, c]
     }
 
     /// The condition slice of generated sample `s`: that of a random real crop at `scale`
@@ -183,58 +126,106 @@ impl Trainer {
         self.crop_condition(&origin, stride)
     }
 
-    /// [`Trainer::fake_values`] on a GPU: the same crops and fields, with the latent blend
-    /// evaluated on the device from each sample's few lattice vectors ([`DeviceLattice`])
-    /// instead of `latent_dim` floats per point sent from the host. (On flex the host blend
-    /// is kept: it is as fast there, and gives the latent values the fused CPU evaluator gives.)
+    /// [`Trainer::fake_batch`] on flex: each point's latent vector blended on the host, then
+    /// the MLP in chunks of [`FLEX_TRAIN_CHUNK`] points, so each layer's activations (and, in
+    /// the backward pass, their gradients) stay in cache; the weight gradients sum over the
+    /// chunks.
     ///
     /// # Shapes
-    /// - output: `[batch * points, channels]` on `device`, and `[batch * points]`
-    fn fake_values_on_device(
+    /// - output: `[batch * points, channels]` on `device`
+    fn values_on_flex(
         &self,
         generator: &Generator,
         device: &Device,
-        counters: &[u64],
-        draw: u64,
-        scale: Scale,
-    ) -> (Tensor<2>, Vec<f32>) {
+        samples: &[FakeSample],
+    ) -> Tensor<2> {
         let cfg = &self.config;
-        let b = cfg.batch;
-        let (n, dims) = (self.crop_points(), self.kind.generator_axes());
-        let mut coords = Vec::with_capacity(b * n * dims);
-        let mut conditions = Vec::new();
-        let mut plans = Vec::with_capacity(b);
-        for s in 0..b {
-            let (p, field) = self.sample_coordinates(s, counters, draw, scale);
-            // The box of lattice cells this crop touches (u = p * latent_scale, as on the device).
-            let (mut lo, mut hi) = (vec![f32::INFINITY; dims], vec![f32::NEG_INFINITY; dims]);
-            for q in p.chunks_exact(dims) {
-                for d in 0..dims {
-                    let u = q[d] * cfg.latent_scale;
-                    lo[d] = lo[d].min(u);
-                    hi[d] = hi[d].max(u);
+        let ld = cfg.latent_dim;
+        let conditioned = self.kind.conditioned() as usize;
+        let zw = ld + conditioned; // generator input after the encoding: latent, then g
+        let (b, n, dims) = (
+            samples.len(),
+            self.crop_points(),
+            self.kind.generator_axes(),
+        );
+        let coords: Vec<f32> = samples.iter().flat_map(|s| s.p.iter().copied()).collect();
+        let mut latent = vec![0f32; b * n * zw];
+        latent
+            .par_chunks_mut(n * zw)
+            .zip(samples)
+            .for_each(|(z, sample)| {
+                let u: Vec<f32> = sample.p.iter().map(|v| v * cfg.latent_scale).collect();
+                if conditioned == 0 {
+                    sample.field.fill(&u, z);
+                    return;
                 }
-            }
-            coords.extend_from_slice(&p);
-            conditions.extend(self.fake_condition(s, counters, scale));
-            plans.push((field, lo, hi));
-        }
-        let fields: Vec<(&LatentField, Vec<f32>, Vec<f32>)> = plans
+                let mut zs = vec![0f32; n * ld];
+                sample.field.fill(&u, &mut zs);
+                for q in 0..n {
+                    z[q * zw..q * zw + ld].copy_from_slice(&zs[q * ld..(q + 1) * ld]);
+                    z[q * zw + ld] = sample.condition[q];
+                }
+            });
+        let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, dims]), device);
+        let z = Tensor::<2>::from_data(TensorData::new(latent, [b * n, zw]), device);
+        let values: Vec<Tensor<2>> = p
+            .split(FLEX_TRAIN_CHUNK, 0)
+            .into_iter()
+            .zip(z.split(FLEX_TRAIN_CHUNK, 0))
+            .map(|(p, z)| generator.forward(p, z)) // [chunk, c]
+            .collect();
+        Tensor::cat(values, 0) // [b * n, c]
+    }
+
+    /// [`Trainer::fake_batch`] on a GPU: the latent blend evaluated on the device from each
+    /// sample's few lattice vectors ([`DeviceLattice`]) instead of `latent_dim` floats per
+    /// point sent from the host. (On flex the host blend is kept: it is as fast there, and
+    /// gives the latent values the fused CPU evaluator gives.)
+    ///
+    /// # Shapes
+    /// - output: `[batch * points, channels]` on `device`
+    fn values_on_device(
+        &self,
+        generator: &Generator,
+        device: &Device,
+        samples: &[FakeSample],
+        conditions: &[f32],
+    ) -> Tensor<2> {
+        let cfg = &self.config;
+        let (b, n, dims) = (
+            samples.len(),
+            self.crop_points(),
+            self.kind.generator_axes(),
+        );
+        // The box of lattice cells each crop touches (u = p * latent_scale, as on the device).
+        let fields: Vec<(&LatentField, Vec<f32>, Vec<f32>)> = samples
             .iter()
-            .map(|(f, lo, hi)| (f, lo.clone(), hi.clone()))
+            .map(|sample| {
+                let (mut lo, mut hi) = (vec![f32::INFINITY; dims], vec![f32::NEG_INFINITY; dims]);
+                for q in sample.p.chunks_exact(dims) {
+                    for d in 0..dims {
+                        let u = q[d] * cfg.latent_scale;
+                        lo[d] = lo[d].min(u);
+                        hi[d] = hi[d].max(u);
+                    }
+                }
+                (&sample.field, lo, hi)
+            })
             .collect();
         let lattice = DeviceLattice::new(&fields, device);
         let sample = Tensor::<1, Int>::arange(0..b as i64, device)
             .reshape([b, 1])
             .expand([b, n])
             .reshape([b * n]); // [b * n]: the field of each point
+        let coords: Vec<f32> = samples.iter().flat_map(|s| s.p.iter().copied()).collect();
         let p = Tensor::<2>::from_data(TensorData::new(coords, [b * n, dims]), device);
         let mut z = lattice.blend(p.clone().mul_scalar(cfg.latent_scale), Some(sample)); // [b * n, ld]
         if !conditions.is_empty() {
-            let g = Tensor::<2>::from_data(TensorData::new(conditions.clone(), [b * n, 1]), device);
+            let g =
+                Tensor::<2>::from_data(TensorData::new(conditions.to_vec(), [b * n, 1]), device);
             z = Tensor::cat(vec![z, g], 1); // [b * n, ld + 1]
         }
-        (generator.forward(p, z), conditions) // [b * n, c]
+        generator.forward(p, z) // [b * n, c]
     }
 
     /// The same crops as [`Trainer::fake_batch`], painted by synthesis' fused CPU engine (no

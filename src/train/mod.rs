@@ -155,13 +155,10 @@ impl Trainer {
         })
     }
 
-    /// A fresh run in `run_dir`, refusing a folder that already holds one.
-    pub fn start(
-        config: TrainConfig,
-        source: impl Into<ExemplarSource>,
-        run_dir: &Path,
-        device: &Device,
-    ) -> Result<Self> {
+    /// Takes this fresh run's folder: refuses one that already holds a run, then creates and
+    /// locks it.
+    pub fn start(mut self) -> Result<Self> {
+        let run_dir = self.run_dir.clone();
         if run_dir.join("latest.ipfn").exists() {
             return Err(input_error!(
                 "{} already holds a run; continue it with `ipfn train --resume {}` or start another with --out DIR",
@@ -169,10 +166,9 @@ impl Trainer {
                 run_dir.display()
             ));
         }
-        let mut trainer = Self::new(config, source, run_dir, device)?;
-        run::create_dir(run_dir)?;
-        trainer.lock = Some(RunLock::acquire(run_dir)?);
-        Ok(trainer)
+        run::create_dir(&run_dir)?;
+        self.lock = Some(RunLock::acquire(&run_dir)?);
+        Ok(self)
     }
 
     /// Continues the run in `run_dir` with the flags of `overrides` that a resumed run may
@@ -249,87 +245,67 @@ impl Trainer {
         iterations: Option<u64>,
         device: &Device,
     ) -> Result<Self> {
-        let latest = latest.to_path_buf();
-        let ckpt = Checkpoint::load(&latest)?;
-        let mut config = TrainConfig::from_toml(ckpt.meta(TRAIN_CONFIG_KEY)?, &latest)?;
+        let ckpt = Checkpoint::load(latest)?;
+        let mut config = TrainConfig::from_toml(ckpt.meta(TRAIN_CONFIG_KEY)?, latest)?;
         if let Some(n) = iterations {
             config.iterations = n;
         }
-        let source = ExemplarSource::from_meta(ckpt.meta(EXEMPLAR_KEY)?, &latest)?;
-        let kind = config.run_kind()?;
-        let (exemplar, maps) = source.load(&config)?;
-        if ckpt.meta(FINGERPRINT_KEY)? != exemplar.fingerprint().to_string() {
+        let source = ExemplarSource::from_meta(ckpt.meta(EXEMPLAR_KEY)?, latest)?;
+        // A fresh trainer of the same config and exemplar, whose state is then read back.
+        let mut trainer = Self::new(config, source, run_dir, device)?;
+        if ckpt.meta(FINGERPRINT_KEY)? != trainer.exemplar.fingerprint().to_string() {
             // The state file and the exemplar disagree: the state file is named, as for every
             // other refusal of a resume, and the exemplar after it.
             return Err(crate::file_error!(
-                &latest,
+                latest,
                 "{}: the exemplar changed since this run started; start a new run instead of resuming",
-                source.main_path().display()
+                trainer.source.main_path().display()
             ));
         }
-        config.validate(&kind, &exemplar, source.main_path())?;
-        let device = device.clone().autodiff();
-        let (gen_config, model) = GeneratorWeights::read_from(&ckpt)?;
-        if gen_config != config.generator_config(&kind, exemplar.channels) {
+        trainer.read_state(&ckpt, latest)?;
+        trainer.lock = Some(lock);
+        Ok(trainer)
+    }
+
+    /// Reads the networks, the optimisers' moments, the iteration and the best score from a
+    /// checkpoint of this run.
+    fn read_state(&mut self, ckpt: &Checkpoint, latest: &Path) -> Result<()> {
+        let (config, device) = (&self.config, &self.device);
+        let channels = self.exemplar.channels;
+        let (gen_config, model) = GeneratorWeights::read_from(ckpt)?;
+        if gen_config != config.generator_config(&self.kind, channels) {
             return Err(crate::file_error!(
-                &latest,
+                latest,
                 "generator does not match the run's config",
             ));
         }
         // With an average, the model is the average and the trained weights are stored apart.
         let (weights, average) = if config.average > 0.0 {
-            let (_, trained) = GeneratorWeights::read_named(average::TRAINED_PREFIX, &ckpt)?;
+            let (_, trained) = GeneratorWeights::read_named(average::TRAINED_PREFIX, ckpt)?;
             (trained, Some(model))
         } else {
             (model, None)
         };
-        let critic = checkpoint::read_module(
-            config.critic_config(&kind, exemplar.channels).init(&device),
-            "critic",
-            &ckpt,
-        )?;
-        let mut adam_generator = Adam::new(config.lr, config.beta1, config.beta2);
-        adam_generator.read_from("adam.generator", &ckpt, &device)?;
-        let mut adam_critic = Adam::new(config.lr, config.beta1, config.beta2);
-        adam_critic.read_from("adam.critic", &ckpt, &device)?;
-        let coarse = if coarse::has_coarse_critic(&config) {
-            let critic = checkpoint::read_module(
-                config.critic_config(&kind, exemplar.channels).init(&device),
-                run::COARSE_CRITIC_PREFIX,
-                &ckpt,
-            )?;
-            let mut adam = Adam::new(config.lr, config.beta1, config.beta2);
-            adam.read_from(run::COARSE_ADAM_PREFIX, &ckpt, &device)?;
-            Some(coarse::CoarseCritic { critic, adam })
-        } else {
-            None
-        };
-        let iteration = ckpt
+        let critic_config = config.critic_config(&self.kind, channels);
+        self.critic = checkpoint::read_module(critic_config.init(device), "critic", ckpt)?;
+        self.adam_generator
+            .read_from("adam.generator", ckpt, device)?;
+        self.adam_critic.read_from("adam.critic", ckpt, device)?;
+        if let Some(coarse) = &mut self.coarse {
+            let prefix = run::COARSE_CRITIC_PREFIX;
+            coarse.critic = checkpoint::read_module(critic_config.init(device), prefix, ckpt)?;
+            coarse
+                .adam
+                .read_from(run::COARSE_ADAM_PREFIX, ckpt, device)?;
+        }
+        self.iteration = ckpt
             .meta(ITERATION_KEY)?
             .parse()
-            .map_err(|_| crate::file_error!(&latest, "unreadable iteration count"))?;
-        let best = run::read_best(&ckpt);
-        Ok(Self {
-            config,
-            kind,
-            exemplar,
-            source,
-            maps,
-            run_dir: run_dir.to_path_buf(),
-            generator: Generator::from_weights(&weights, &device),
-            average,
-            device,
-            critic,
-            coarse,
-            adam_generator,
-            adam_critic,
-            iteration,
-            best,
-            lock: Some(lock),
-            framework_only: false,
-            kept_passes_bytes: fakes::KEPT_PASSES_BYTES,
-            diversity_target: Default::default(),
-        })
+            .map_err(|_| crate::file_error!(latest, "unreadable iteration count"))?;
+        self.best = run::read_best(ckpt);
+        self.generator = Generator::from_weights(&weights, device);
+        self.average = average;
+        Ok(())
     }
 
     /// Takes every step through the framework's autodiff, as on a GPU, even on the CPU (where

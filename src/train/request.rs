@@ -86,7 +86,7 @@ impl TrainRequest {
             .out
             .clone()
             .unwrap_or_else(|| default_run_dir(source.main_path()));
-        let trainer = Trainer::start(config, source, &run_dir, &burn_device)?;
+        let trainer = Trainer::new(config, source, &run_dir, &burn_device)?.start()?;
         if let Some(maps) = trainer.maps() {
             lines.push(format!("map set: {}", maps.describe()));
         }

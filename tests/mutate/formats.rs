@@ -68,8 +68,9 @@ pub fn formats(dir: &Path) -> Vec<Format> {
         let config: ipfn::train::TrainConfig = toml::from_str(RUN_TOML).unwrap();
         let device = burn::prelude::Device::flex();
         let run = dir.join("run");
-        let mut trainer =
-            ipfn::train::Trainer::start(config, dir.join("ex.png"), &run, &device).unwrap();
+        let mut trainer = ipfn::train::Trainer::new(config, dir.join("ex.png"), &run, &device)
+            .and_then(|t| t.start())
+            .unwrap();
         trainer
             .run(&std::sync::atomic::AtomicBool::new(false), |_, _| {})
             .unwrap();
