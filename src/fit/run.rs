@@ -240,7 +240,14 @@ impl Fitter {
         let mut fit = Self::fresh(config, inputs, run_dir, lock, device);
         fit.net = PeriodicNet::read_from(&checkpoint)?;
         fit.stage = number(STAGE_KEY)? as usize;
-        let n = fit.net.params.get(fit.stage).map_or(0, Vec::len);
+        let stages = fit.net.stages();
+        if fit.stage >= stages {
+            return Err(input_error!(
+                "{file}: this fit is complete ({stages} of {stages} stages); its tile is {}; start a new fit with `ipfn fit PHOTO --run DIR` to fit again",
+                run_dir.join("tile.ipfn").display()
+            ));
+        }
+        let n = fit.net.params[fit.stage].len();
         fit.adam = FlatAdam {
             m: checkpoint.tensor("adam.m", &[n])?.to_vec(),
             v: checkpoint.tensor("adam.v", &[n])?.to_vec(),

@@ -287,6 +287,9 @@ fn bad_input_gets_one_line_errors() {
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     let out = ipfn(dir.path(), &["fit", "photo.png", "--run", "run"]);
     assert_error(&out, &["already holds a fit", "--resume"]);
+    // A finished fit has nothing left to resume: it says so and names its tile.
+    let out = ipfn(dir.path(), &["fit", "--resume", "run"]);
+    assert_error(&out, &["latest.ipfn", "this fit is complete", "tile.ipfn"]);
 }
 
 /// `--device flex` (burn's autodiff, the path GPUs take) fits what the fused CPU path fits.
