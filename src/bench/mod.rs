@@ -133,6 +133,17 @@ pub struct Row {
 }
 
 impl Row {
+    /// A published figure that is not re-run here, and how it compares with ours.
+    fn reference(work: impl Into<String>, who: &str, seconds: f64, compared: String) -> Self {
+        Row {
+            work: work.into(),
+            device: who.into(),
+            ours_s: seconds,
+            floor: compared,
+            floor_s: None,
+        }
+    }
+
     pub fn markdown(&self) -> String {
         let (floor, ratio) = match self.floor_s {
             Some(f) => (
@@ -338,22 +349,20 @@ fn synth_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
             if let Some(&(_, authors)) = AUTHORS_H100_SYNTH_S.iter().find(|(s, _)| *s == n)
                 && is_gpu(engine.device)
             {
-                emit(Row {
-                    work: format!("synth {n}²"),
-                    device: "authors' PyTorch on one H100 (not re-run)".into(),
-                    ours_s: authors,
-                    floor: format!("ours is {:.2}x its time", ours / authors),
-                    floor_s: None,
-                });
+                emit(Row::reference(
+                    format!("synth {n}²"),
+                    "authors' PyTorch on one H100 (not re-run)",
+                    authors,
+                    format!("ours is {:.2}x its time", ours / authors),
+                ));
             }
             if n == 1024 && engine.device == DeviceChoice::Cpu {
-                emit(Row {
-                    work: "synth 1024²".into(),
-                    device: "authors' PyTorch (reference machine, not re-run)".into(),
-                    ours_s: AUTHORS_SYNTH_1024_S,
-                    floor: format!("{:.1}x slower than ours", AUTHORS_SYNTH_1024_S / ours),
-                    floor_s: None,
-                });
+                emit(Row::reference(
+                    "synth 1024²",
+                    "authors' PyTorch (reference machine, not re-run)",
+                    AUTHORS_SYNTH_1024_S,
+                    format!("{:.1}x slower than ours", AUTHORS_SYNTH_1024_S / ours),
+                ));
             }
         }
         Ok(())
@@ -383,13 +392,12 @@ fn volume_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
             let work = format!("volume {n}³ (3D 10x128 MLP)");
             emit(engine.row(work, ours, n * n * n, runs));
             if n == 512 {
-                emit(Row {
-                    work: "volume 512³".into(),
-                    device: "paper (GPU, reported)".into(),
-                    ours_s: PAPER_VOLUME_512_S,
-                    floor: format!("ours is {:.2}x its time", ours / PAPER_VOLUME_512_S),
-                    floor_s: None,
-                });
+                emit(Row::reference(
+                    "volume 512³",
+                    "paper (GPU, reported)",
+                    PAPER_VOLUME_512_S,
+                    format!("ours is {:.2}x its time", ours / PAPER_VOLUME_512_S),
+                ));
             }
         }
         Ok(())
@@ -469,13 +477,12 @@ fn train_rows(plan: &BenchPlan, emit: &mut impl FnMut(Row)) -> Result<()> {
                 ))
             };
             if let Some((who, t)) = reference {
-                emit(Row {
+                emit(Row::reference(
                     work,
-                    device: who.into(),
-                    ours_s: t,
-                    floor: format!("{:.1}x ours", t / ours),
-                    floor_s: None,
-                });
+                    who,
+                    t,
+                    format!("{:.1}x ours", t / ours),
+                ));
             }
         }
     }
