@@ -243,7 +243,7 @@ impl Fitter {
         let stages = fit.net.stages();
         if fit.stage >= stages {
             return Err(input_error!(
-                "{file}: this fit is complete ({stages} of {stages} stages); its tile is {}; start a new fit with `ipfn fit PHOTO --run DIR` to fit again",
+                "{file}: this fit is complete ({stages} of {stages} stages); its tile is {}; to fit again, start a new fit in another folder with `ipfn fit PHOTO --run NEW_DIR`",
                 run_dir.join("tile.ipfn").display()
             ));
         }
